@@ -1,0 +1,35 @@
+#pragma once
+// Small geometric helpers and the project's deterministic random generator.
+#include <binpose/types.hpp>
+
+#include <cstdint>
+
+namespace binpose {
+
+/// SplitMix64: a tiny, portable, seedable generator, so that the same seed gives the same
+/// samples on every platform and standard library.
+class Rng {
+ public:
+  explicit Rng(std::uint64_t seed) : state_(seed) {}
+  std::uint64_t next() {
+    std::uint64_t z = (state_ += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+  }
+  /// Uniform in [0, 1).
+  double uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }
+  /// Uniform integer in [0, n).
+  std::uint64_t below(std::uint64_t n) { return static_cast<std::uint64_t>(uniform() * static_cast<double>(n)); }
+
+ private:
+  std::uint64_t state_;
+};
+
+/// Largest distance between two points (exact, O(n^2), parallel). 0 for fewer than two points.
+float diameter(const Points& points);
+
+/// Axis-aligned bounds; false when `points` is empty.
+bool bounds(const Points& points, Vec3& lo, Vec3& hi);
+
+}  // namespace binpose

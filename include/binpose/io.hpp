@@ -1,0 +1,72 @@
+#pragma once
+// Readers and writers for scans and models (issue 2). Every reader converts to millimetres by
+// `scale` (1 for files in mm, 1000 for files in metres) and throws binpose::Error with a
+// one-line message naming the file and the problem on any malformed or truncated input.
+#include <binpose/types.hpp>
+
+#include <string>
+
+namespace binpose {
+
+/// Length unit of a file on disk.
+enum class Units { Millimetres, Metres };
+/// Factor from `units` to millimetres.
+double unitScale(Units units);
+/// Parses "mm" or "m" (throws on anything else).
+Units parseUnits(const std::string& text);
+
+/// PLY (ascii, binary_little_endian, binary_big_endian). Vertices x,y,z (float or double),
+/// optional nx,ny,nz (normalised; a zero normal marks the file's normals as unusable), optional
+/// faces (polygons fan-triangulated). Other elements and properties are skipped.
+Mesh readPlyMesh(const std::string& path, double scale = 1.0);
+/// PLY as a point cloud (faces ignored).
+PointCloud readPlyCloud(const std::string& path, double scale = 1.0);
+
+/// PCD v0.5-0.7: DATA ascii, binary or binary_compressed (LZF); organized or not. Points with a
+/// non-finite coordinate are dropped; normal_x/y/z are read when present.
+PointCloud readPcd(const std::string& path, double scale = 1.0);
+
+/// Triangle mesh by extension: .ply by readPlyMesh, others (.stl, .obj, .off, ...) by assimp.
+Mesh readMesh(const std::string& path, double scale = 1.0);
+
+/// Any scan or model as a point cloud, by extension: .ply, .pcd, or a mesh format (its vertices).
+PointCloud readCloud(const std::string& path, double scale = 1.0);
+
+/// A model file: a mesh when it has faces (`mesh` set), otherwise a point cloud.
+struct ModelFile {
+  bool is_mesh = false;
+  Mesh mesh;
+  PointCloud cloud;
+};
+/// .ply with faces and mesh formats give a mesh; .pcd and .ply without faces a cloud.
+ModelFile readModelFile(const std::string& path, double scale = 1.0);
+
+/// Pinhole intrinsics of a depth sensor. depth_scale converts a raw depth value to millimetres
+/// (BOP convention: depth_mm = raw * depth_scale).
+struct Intrinsics {
+  double fx = 0, fy = 0, cx = 0, cy = 0;
+  double depth_scale = 1.0;
+  int width = 0, height = 0;  ///< 0 when the file does not say
+};
+
+/// BOP `camera.json` ({fx, fy, cx, cy, depth_scale, width, height}) or `scene_camera.json`
+/// ({"<image id>": {"cam_K": [9 values], "depth_scale": s}}; `image_id` picks the entry, the
+/// first one when empty).
+Intrinsics readIntrinsics(const std::string& path, const std::string& image_id = "");
+
+/// 16-bit grayscale PNG depth image into an organized cloud in the camera frame (mm); pixels
+/// with depth 0 are dropped.
+PointCloud readDepthPng(const std::string& path, const Intrinsics& intrinsics);
+/// The cloud of a depth image already in memory (row-major, width*height raw values).
+PointCloud depthToCloud(const std::vector<std::uint16_t>& depth, int width, int height,
+                        const Intrinsics& intrinsics);
+/// Writes a 16-bit grayscale PNG (used by tests and the simulator).
+void writeDepthPng(const std::string& path, const std::vector<std::uint16_t>& depth, int width,
+                   int height);
+
+enum class PlyFormat { Ascii, BinaryLittleEndian, BinaryBigEndian };
+/// Writes vertices (and normals when present) and, if given, faces.
+void writePly(const std::string& path, const Points& points, const Points& normals = {},
+              const std::vector<Eigen::Vector3i>& faces = {}, PlyFormat format = PlyFormat::BinaryLittleEndian);
+
+}  // namespace binpose

@@ -1,0 +1,64 @@
+#pragma once
+// The model's feature database (thesis 4.2 "Data Structure Storage", chapter 6): for every
+// quantized directed feature key, the model points m_i of the pairs (m_i -> m_j) with that key,
+// each model point at most once per key. Immutable once built; a compressed-row layout (one
+// offset per key of the dense key space, then the model point ids), so a lookup is two loads.
+#include <binpose/features.hpp>
+#include <binpose/model.hpp>
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace binpose {
+
+/// Quantization defaults for a model of the given diameter: d_dist = 1.0 mm for the thesis's
+/// 60 mm part, scaled by diameter / 60 mm (the thesis swept 0.5-1.2 mm, Table 5); d_angle = 8
+/// degrees (6.4); p_d = 15% (Tables 1-7).
+QuantizationParams defaultQuantization(float model_diameter);
+
+struct DatabaseStats {
+  std::uint32_t keys_total = 0;   ///< size of the dense key space
+  std::uint32_t keys_used = 0;    ///< keys holding at least one model point
+  std::uint64_t entries = 0;      ///< stored (key, model point) pairs
+  double median_per_key = 0;      ///< median model points per used key
+  double mean_per_key = 0;
+  std::uint32_t max_per_key = 0;
+};
+
+class ModelDatabase {
+ public:
+  using PointId = std::uint16_t;  ///< model points are limited to 65535
+  static constexpr std::uint32_t kFormatVersion = 1;
+
+  ModelDatabase() = default;
+
+  /// Builds the table from every ordered pair of model points, using all cores. Deterministic:
+  /// the ids under each key are in increasing order.
+  static ModelDatabase build(OrientedModel model, const QuantizationParams& params);
+
+  /// Versioned binary file: magic, format version, parameters, model points and normals, the
+  /// table, and a CRC-32 of all of it. Throws binpose::Error on any failure.
+  void save(const std::string& path) const;
+  /// Refuses (binpose::Error) a file of another version, a truncated or corrupt file.
+  static ModelDatabase load(const std::string& path);
+
+  /// Model points stored under `key` (empty for kInvalid or an unused key).
+  [[nodiscard]] std::span<const PointId> lookup(std::uint32_t key) const {
+    if (key >= keys_.size()) return {};
+    return {entries_.data() + offsets_[key], entries_.data() + offsets_[key + 1]};
+  }
+  [[nodiscard]] const KeySpace& keySpace() const { return keys_; }
+  [[nodiscard]] const OrientedModel& model() const { return model_; }
+  [[nodiscard]] std::uint64_t entryCount() const { return entries_.size(); }
+  [[nodiscard]] DatabaseStats stats() const;
+
+ private:
+  OrientedModel model_;
+  KeySpace keys_;
+  std::vector<std::uint32_t> offsets_;  ///< keys_.size() + 1 offsets into entries_
+  std::vector<PointId> entries_;
+};
+
+}  // namespace binpose

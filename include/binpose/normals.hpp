@@ -1,0 +1,17 @@
+#pragma once
+// Surface normals by least-squares plane fits (thesis 5.2.2, eq. 30-38).
+#include <binpose/types.hpp>
+
+namespace binpose {
+
+/// Normal of the plane fitted to `points` (eq. 30-38): the eigenvector of the smallest eigenvalue
+/// of the scatter matrix W = Q^T Q about the centroid. False for fewer than 3 points, a
+/// non-finite point, or a degenerate (collinear) neighbourhood.
+bool fitPlaneNormal(const Points& points, Vec3& normal);
+
+/// Normals of `queries` from their `k` nearest neighbours in `cloud` (the query itself included
+/// when it is a cloud point; thesis: k = 6 on the full scan), each oriented towards `viewpoint`.
+/// A query whose neighbourhood is degenerate gets a zero normal (missing), never NaN. Parallel.
+Points estimateNormals(const Points& cloud, const Points& queries, int k, const Vec3& viewpoint);
+
+}  // namespace binpose

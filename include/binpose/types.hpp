@@ -1,0 +1,50 @@
+#pragma once
+// Plain data types shared by every stage. Units: millimetres everywhere inside binpose.
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace binpose {
+
+using Vec3 = Eigen::Vector3f;
+using Points = std::vector<Vec3>;
+
+/// Any error binpose reports to its caller: one line, naming the file or parameter at fault.
+struct Error : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+/// A point cloud in millimetres. `normals` is empty or has one unit vector per point.
+/// An organized cloud (from a depth image or an organized PCD) keeps width x height and,
+/// for each kept point, its pixel index (row * width + col); invalid pixels are dropped.
+struct PointCloud {
+  Points points;
+  Points normals;
+  int width = 0;
+  int height = 0;
+  std::vector<std::int32_t> pixel;
+  Vec3 viewpoint = Vec3::Zero();  ///< sensor origin, for orienting normals (PCD VIEWPOINT)
+
+  [[nodiscard]] std::size_t size() const { return points.size(); }
+  [[nodiscard]] bool empty() const { return points.empty(); }
+  [[nodiscard]] bool hasNormals() const { return !normals.empty() && normals.size() == points.size(); }
+  [[nodiscard]] bool organized() const { return width > 0 && height > 0; }
+};
+
+/// A triangle mesh in millimetres. `normals` is empty or one unit vector per vertex (as given
+/// by the file; used only to orient faces).
+struct Mesh {
+  Points vertices;
+  std::vector<Eigen::Vector3i> faces;
+  Points normals;
+
+  [[nodiscard]] bool hasNormals() const { return !normals.empty() && normals.size() == vertices.size(); }
+};
+
+/// Unit vector n normalised in place; false (and n untouched) for a zero or non-finite vector.
+bool normalizeSafe(Vec3& n);
+
+}  // namespace binpose

@@ -1,0 +1,99 @@
+#include "io_detail.hpp"
+
+#include <binpose/io.hpp>
+
+#include <algorithm>
+#include <cctype>
+#include <charconv>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace binpose {
+
+bool normalizeSafe(Vec3& n) {
+  const float len = n.norm();
+  if (!std::isfinite(len) || len < 1e-12f) return false;
+  n /= len;
+  return true;
+}
+
+double unitScale(Units units) { return units == Units::Metres ? 1000.0 : 1.0; }
+
+Units parseUnits(const std::string& text) {
+  if (text == "mm") return Units::Millimetres;
+  if (text == "m") return Units::Metres;
+  throw Error(fmt::format("units: expected 'mm' or 'm', got '{}'", text));
+}
+
+PointCloud readCloud(const std::string& path, double scale) {
+  const std::string ext = detail::extensionOf(path);
+  if (ext == "ply") return readPlyCloud(path, scale);
+  if (ext == "pcd") return readPcd(path, scale);
+  Mesh mesh = readMesh(path, scale);
+  PointCloud cloud;
+  cloud.points = std::move(mesh.vertices);
+  cloud.normals = std::move(mesh.normals);
+  return cloud;
+}
+
+namespace detail {
+
+void fail(const std::string& path, const std::string& message) {
+  throw Error(fmt::format("{}: {}", path, message));
+}
+
+std::string readFileBytes(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) fail(path, "no such file");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) fail(path, "cannot open file");
+  std::ostringstream buffer;
+  buffer << in.rdbuf();
+  std::string bytes = std::move(buffer).str();
+  if (bytes.empty()) fail(path, "file is empty");
+  return bytes;
+}
+
+std::string extensionOf(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  if (!ext.empty() && ext.front() == '.') ext.erase(0, 1);
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  return ext;
+}
+
+std::vector<std::string_view> splitWords(std::string_view line) {
+  std::vector<std::string_view> words;
+  std::size_t i = 0;
+  while (i < line.size()) {
+    while (i < line.size() && std::isspace(static_cast<unsigned char>(line[i]))) ++i;
+    const std::size_t start = i;
+    while (i < line.size() && !std::isspace(static_cast<unsigned char>(line[i]))) ++i;
+    if (i > start) words.push_back(line.substr(start, i - start));
+  }
+  return words;
+}
+
+bool parseNumber(std::string_view token, double& value) {
+  if (!token.empty() && token.front() == '+') token.remove_prefix(1);
+  const auto [end, ec] = std::from_chars(token.data(), token.data() + token.size(), value);
+  if (ec == std::errc::result_out_of_range) {  // denormals and overflow: take what strtod gives
+    value = std::strtod(std::string(token).c_str(), nullptr);
+    return true;
+  }
+  return ec == std::errc() && end == token.data() + token.size();
+}
+
+int scalarSize(Scalar type) {
+  switch (type) {
+    case Scalar::Int8: case Scalar::UInt8: return 1;
+    case Scalar::Int16: case Scalar::UInt16: return 2;
+    case Scalar::Int32: case Scalar::UInt32: case Scalar::Float32: return 4;
+    case Scalar::Float64: return 8;
+  }
+  return 0;
+}
+
+}  // namespace detail
+}  // namespace binpose

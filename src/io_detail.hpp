@@ -1,0 +1,54 @@
+#pragma once
+// Internal helpers shared by the readers: whole-file reading, error formatting, byte order.
+#include <binpose/types.hpp>
+
+#include <bit>
+#include <cstdint>
+#include <cstring>
+#include <fmt/format.h>
+#include <string>
+#include <string_view>
+
+namespace binpose::detail {
+
+/// Throws binpose::Error("<path>: <message>").
+[[noreturn]] void fail(const std::string& path, const std::string& message);
+
+/// The whole file as bytes (throws if it cannot be opened or is empty).
+std::string readFileBytes(const std::string& path);
+
+/// Lower-cased file extension without the dot ("" when none).
+std::string extensionOf(const std::string& path);
+
+/// Splits a header line into whitespace-separated words.
+std::vector<std::string_view> splitWords(std::string_view line);
+
+/// Parses a whole token as a number; false when it is not one.
+bool parseNumber(std::string_view token, double& value);
+
+/// Scalar types of PLY and PCD.
+enum class Scalar { Int8, UInt8, Int16, UInt16, Int32, UInt32, Float32, Float64 };
+int scalarSize(Scalar type);
+
+/// Reads one scalar of `type` at `data` (byte order `big_endian`) as double.
+inline double readScalar(const char* data, Scalar type, bool big_endian) {
+  unsigned char bytes[8];
+  const int n = scalarSize(type);
+  std::memcpy(bytes, data, static_cast<std::size_t>(n));
+  if (big_endian != (std::endian::native == std::endian::big)) {
+    for (int i = 0; i < n / 2; ++i) std::swap(bytes[i], bytes[n - 1 - i]);
+  }
+  switch (type) {
+    case Scalar::Int8: { std::int8_t v; std::memcpy(&v, bytes, 1); return v; }
+    case Scalar::UInt8: { std::uint8_t v; std::memcpy(&v, bytes, 1); return v; }
+    case Scalar::Int16: { std::int16_t v; std::memcpy(&v, bytes, 2); return v; }
+    case Scalar::UInt16: { std::uint16_t v; std::memcpy(&v, bytes, 2); return v; }
+    case Scalar::Int32: { std::int32_t v; std::memcpy(&v, bytes, 4); return v; }
+    case Scalar::UInt32: { std::uint32_t v; std::memcpy(&v, bytes, 4); return v; }
+    case Scalar::Float32: { float v; std::memcpy(&v, bytes, 4); return v; }
+    case Scalar::Float64: { double v; std::memcpy(&v, bytes, 8); return v; }
+  }
+  return 0.0;
+}
+
+}  // namespace binpose::detail

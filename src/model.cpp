@@ -1,0 +1,123 @@
+// Offline model preparation (thesis chapter 6).
+#include <binpose/model.hpp>
+
+#include <binpose/geometry.hpp>
+#include <binpose/normals.hpp>
+#include <binpose/sampling.hpp>
+
+#include <array>
+#include <cmath>
+#include <fmt/format.h>
+#include <numbers>
+
+namespace binpose {
+namespace {
+
+void checkParams(const ModelParams& p) {
+  if (p.rho_model < 0 || !std::isfinite(p.rho_model))
+    throw Error(fmt::format("rho_model must be >= 0 points/mm^2, got {}", p.rho_model));
+  if (p.rho_model == 0 && (p.num_points < 16 || p.num_points > 65535))
+    throw Error(fmt::format("model points must lie in [16, 65535], got {}", p.num_points));
+  if (p.normal_k < 3 || p.normal_k > 1000) throw Error(fmt::format("normal k must lie in [3, 1000], got {}", p.normal_k));
+}
+
+std::size_t targetCount(const ModelParams& p, double area) {
+  if (p.rho_model <= 0) return static_cast<std::size_t>(p.num_points);
+  const double n = std::round(p.rho_model * area);
+  if (n < 16 || n > 65535)
+    throw Error(fmt::format("rho_model {} points/mm^2 over {:.0f} mm^2 gives {:.0f} points; need 16..65535",
+                            p.rho_model, area, n));
+  return static_cast<std::size_t>(n);
+}
+
+/// For each face corner, the area-weighted mean normal of the faces around that vertex whose
+/// normal lies within the crease angle of this face's: smooth across soft edges, sharp at creases.
+std::vector<std::array<Vec3, 3>> cornerNormals(const Mesh& mesh, const Points& face_n, double crease_deg) {
+  std::vector<std::vector<int>> faces_of(mesh.vertices.size());
+  std::vector<float> area(mesh.faces.size());
+  for (std::size_t f = 0; f < mesh.faces.size(); ++f) {
+    const auto& t = mesh.faces[f];
+    area[f] = 0.5f * (mesh.vertices[t[1]] - mesh.vertices[t[0]]).cross(mesh.vertices[t[2]] - mesh.vertices[t[0]]).norm();
+    for (int k = 0; k < 3; ++k) faces_of[t[k]].push_back(static_cast<int>(f));
+  }
+  const float cos_crease = static_cast<float>(std::cos(crease_deg * std::numbers::pi / 180.0));
+  std::vector<std::array<Vec3, 3>> corners(mesh.faces.size());
+  for (std::size_t f = 0; f < mesh.faces.size(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      Vec3 sum = Vec3::Zero();
+      for (const int g : faces_of[mesh.faces[f][k]])
+        if (face_n[g].dot(face_n[f]) >= cos_crease) sum += area[g] * face_n[g];
+      corners[f][k] = normalizeSafe(sum) ? sum : face_n[f];
+    }
+  return corners;
+}
+
+}  // namespace
+
+Points faceNormals(const Mesh& mesh) {
+  Points normals(mesh.faces.size(), Vec3::Zero());
+  double signed_volume = 0;
+  for (std::size_t f = 0; f < mesh.faces.size(); ++f) {
+    const Vec3 &a = mesh.vertices[mesh.faces[f][0]], &b = mesh.vertices[mesh.faces[f][1]], &c = mesh.vertices[mesh.faces[f][2]];
+    Vec3 n = (b - a).cross(c - a);
+    signed_volume += static_cast<double>(a.dot(b.cross(c))) / 6.0;
+    if (!normalizeSafe(n)) continue;
+    if (mesh.hasNormals()) {  // trust the file's vertex normals for the side, face by face
+      const Vec3 given = mesh.normals[mesh.faces[f][0]] + mesh.normals[mesh.faces[f][1]] + mesh.normals[mesh.faces[f][2]];
+      if (n.dot(given) < 0) n = -n;
+    }
+    normals[f] = n;
+  }
+  if (!mesh.hasNormals() && signed_volume < 0)  // wound inwards: turn every face
+    for (Vec3& n : normals) n = -n;
+  return normals;
+}
+
+OrientedModel prepareModel(const Mesh& mesh, const ModelParams& params) {
+  checkParams(params);
+  OrientedModel model;
+  model.area = meshArea(mesh);
+  if (!(model.area > 0)) throw Error("model mesh has zero surface area");
+  const std::size_t target = targetCount(params, model.area);
+  const Points face_n = faceNormals(mesh);
+  const auto corners = cornerNormals(mesh, face_n, params.crease_angle_deg);
+  // A pool 20x denser than the target, thinned by dart throwing (Cline et al. 2009).
+  const auto pool = sampleSurfaceUniform(mesh, std::max<std::size_t>(20 * target, 20000), params.seed);
+  Points pool_points(pool.size());
+  for (std::size_t i = 0; i < pool.size(); ++i) pool_points[i] = pool[i].point;
+  const auto kept = poissonDiskSelectCount(pool_points, target, params.seed + 1, &model.sample_radius);
+  for (const std::uint32_t i : kept) {
+    const SurfacePoint& s = pool[i];
+    const auto& c = corners[s.face];
+    Vec3 n = s.weights[0] * c[0] + s.weights[1] * c[1] + s.weights[2] * c[2];
+    if (!normalizeSafe(n)) continue;  // only on a degenerate face
+    model.points.push_back(s.point);
+    model.normals.push_back(n);
+  }
+  model.diameter = diameter(model.points);
+  return model;
+}
+
+OrientedModel prepareModel(const PointCloud& cloud, const ModelParams& params) {
+  checkParams(params);
+  if (cloud.size() < 16) throw Error(fmt::format("model cloud has {} points; need at least 16", cloud.size()));
+  if (params.rho_model > 0) throw Error("rho_model needs a mesh (a point cloud has no known area); give --points");
+  OrientedModel model;
+  const auto target = static_cast<std::size_t>(params.num_points);
+  const auto kept = poissonDiskSelectCount(cloud.points, target, params.seed, &model.sample_radius);
+  Points sampled;
+  for (const std::uint32_t i : kept) sampled.push_back(cloud.points[i]);
+  const Points fitted = estimateNormals(cloud.points, sampled, params.normal_k, cloud.viewpoint);
+  for (std::size_t s = 0; s < kept.size(); ++s) {
+    const bool given = cloud.hasNormals() && cloud.normals[kept[s]].squaredNorm() > 0.5f;
+    const Vec3 n = given ? cloud.normals[kept[s]] : fitted[s];
+    if (n.squaredNorm() < 0.5f) continue;  // no usable normal
+    model.points.push_back(sampled[s]);
+    model.normals.push_back(n);
+  }
+  if (model.points.size() < 16) throw Error("model cloud has too few points with a usable normal");
+  model.diameter = diameter(model.points);
+  return model;
+}
+
+}  // namespace binpose

@@ -1,0 +1,225 @@
+// Feature database: build (thesis 4.2, eq. 4-7), save and load.
+#include <binpose/model_database.hpp>
+
+#include "io_detail.hpp"
+
+#include <binpose/geometry.hpp>
+
+#include <tbb/parallel_for.h>
+#include <zlib.h>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <fstream>
+#include <numbers>
+
+namespace binpose {
+namespace {
+
+static_assert(std::endian::native == std::endian::little, "database files are little-endian");
+constexpr char kMagic[8] = {'B', 'P', 'O', 'S', 'E', 'D', 'B', '\0'};
+
+/// Sorted, distinct keys of every directed feature starting at model point i (eq. 5, 7).
+std::vector<std::uint32_t> keysOfPoint(const OrientedModel& m, const KeySpace& keys, std::size_t i) {
+  std::vector<std::uint32_t> out;
+  out.reserve(m.points.size() * 3);
+  std::array<std::uint32_t, KeySpace::kMaxKeys> buf{};
+  PairFeature f;
+  for (std::size_t j = 0; j < m.points.size(); ++j) {
+    if (j == i || !computeFeature(m.points[i], m.normals[i], m.points[j], m.normals[j], f)) continue;
+    const int n = keys.overlapKeys(f, buf);
+    out.insert(out.end(), buf.begin(), buf.begin() + n);
+  }
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());  // m_i at most once per key
+  return out;
+}
+
+void validateModel(const OrientedModel& m) {
+  if (m.points.size() < 2) throw Error("model has fewer than two points");
+  if (m.points.size() > 65535) throw Error(fmt::format("model has {} points; the database holds at most 65535", m.points.size()));
+  if (m.normals.size() != m.points.size()) throw Error("model has no normal for every point");
+  for (std::size_t i = 0; i < m.points.size(); ++i) {
+    if (!m.points[i].allFinite()) throw Error(fmt::format("model point {} is not finite", i));
+    if (std::abs(m.normals[i].norm() - 1.0f) > 1e-3f) throw Error(fmt::format("model normal {} is not a unit vector", i));
+  }
+}
+
+class Writer {
+ public:
+  template <typename T>
+  void put(const T& v) { bytes.append(reinterpret_cast<const char*>(&v), sizeof(T)); }
+  template <typename T>
+  void putArray(const T* data, std::size_t n) { bytes.append(reinterpret_cast<const char*>(data), n * sizeof(T)); }
+  std::string bytes;
+};
+
+class Reader {
+ public:
+  Reader(const std::string& path, const std::string& bytes, std::size_t end) : path_(path), bytes_(bytes), end_(end) {}
+  template <typename T>
+  T get(const char* what) {
+    T v;
+    getArray(&v, 1, what);
+    return v;
+  }
+  template <typename T>
+  void getArray(T* out, std::size_t n, const char* what) {
+    if (n > (end_ - pos_) / sizeof(T)) detail::fail(path_, fmt::format("database file is truncated (in {})", what));
+    std::memcpy(static_cast<void*>(out), bytes_.data() + pos_, n * sizeof(T));
+    pos_ += n * sizeof(T);
+  }
+  [[nodiscard]] std::size_t remaining() const { return end_ - pos_; }
+
+ private:
+  const std::string& path_;
+  const std::string& bytes_;
+  std::size_t pos_ = 0, end_;
+};
+
+}  // namespace
+
+QuantizationParams defaultQuantization(float model_diameter) {
+  QuantizationParams q;
+  q.d_dist = 1.0f * thesisScale(model_diameter);
+  q.d_angle = 8.0f * std::numbers::pi_v<float> / 180.0f;
+  q.overlap = 0.15f;
+  return q;
+}
+
+ModelDatabase ModelDatabase::build(OrientedModel model, const QuantizationParams& params) {
+  validateModel(model);
+  if (!(model.diameter > 0)) model.diameter = diameter(model.points);
+  ModelDatabase db;
+  db.keys_ = KeySpace(params, model.diameter);
+  const std::size_t n = model.points.size();
+  std::vector<std::vector<std::uint32_t>> per_point(n);
+  tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) { per_point[i] = keysOfPoint(model, db.keys_, i); });
+
+  std::uint64_t total = 0;
+  for (const auto& k : per_point) total += k.size();
+  if (total >= 0xFFFFFFFFull) throw Error(fmt::format("database would hold {} entries (limit 2^32); use fewer model points", total));
+
+  // Compressed rows, filled in parallel over disjoint key ranges (each task owns its keys, and
+  // visits the points in order, so the ids under a key come out sorted whatever the threads).
+  const std::uint32_t n_keys = db.keys_.size();
+  const std::size_t chunks = 256;
+  auto chunkBegin = [&](std::size_t c) { return static_cast<std::uint32_t>(std::uint64_t(n_keys) * c / chunks); };
+  auto forChunk = [&](std::size_t c, auto&& visit) {
+    const std::uint32_t lo = chunkBegin(c), hi = chunkBegin(c + 1);
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto& k = per_point[i];
+      for (auto it = std::lower_bound(k.begin(), k.end(), lo); it != k.end() && *it < hi; ++it) visit(*it, i);
+    }
+  };
+  db.offsets_.assign(std::size_t{n_keys} + 1, 0);
+  tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
+    forChunk(c, [&](std::uint32_t key, std::size_t) { ++db.offsets_[key + 1]; });
+  });
+  for (std::size_t k = 0; k < n_keys; ++k) db.offsets_[k + 1] += db.offsets_[k];
+  db.entries_.resize(total);
+  std::vector<std::uint32_t> cursor(db.offsets_.begin(), db.offsets_.end() - 1);
+  tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
+    forChunk(c, [&](std::uint32_t key, std::size_t i) { db.entries_[cursor[key]++] = static_cast<PointId>(i); });
+  });
+  db.model_ = std::move(model);
+  return db;
+}
+
+DatabaseStats ModelDatabase::stats() const {
+  DatabaseStats s;
+  s.keys_total = keys_.size();
+  s.entries = entries_.size();
+  std::vector<std::uint32_t> sizes;
+  for (std::uint32_t k = 0; k < keys_.size(); ++k)
+    if (const std::uint32_t c = offsets_[k + 1] - offsets_[k]; c > 0) sizes.push_back(c);
+  s.keys_used = static_cast<std::uint32_t>(sizes.size());
+  if (sizes.empty()) return s;
+  std::sort(sizes.begin(), sizes.end());
+  const std::size_t h = sizes.size() / 2;
+  s.median_per_key = sizes.size() % 2 ? sizes[h] : 0.5 * (sizes[h - 1] + sizes[h]);
+  s.mean_per_key = static_cast<double>(s.entries) / static_cast<double>(sizes.size());
+  s.max_per_key = sizes.back();
+  return s;
+}
+
+void ModelDatabase::save(const std::string& path) const {
+  if (offsets_.empty()) throw Error(fmt::format("{}: cannot save an empty database", path));
+  Writer w;
+  w.putArray(kMagic, sizeof kMagic);
+  w.put(kFormatVersion);
+  const QuantizationParams& q = keys_.params();
+  w.put(q.d_dist); w.put(q.d_angle); w.put(q.overlap);
+  w.put(model_.diameter); w.put(model_.area); w.put(model_.sample_radius);
+  w.put(static_cast<std::uint32_t>(model_.points.size()));
+  w.put(keys_.size());
+  w.put(static_cast<std::uint64_t>(entries_.size()));
+  for (const Vec3& p : model_.points) w.putArray(p.data(), 3);
+  for (const Vec3& nrm : model_.normals) w.putArray(nrm.data(), 3);
+  w.putArray(offsets_.data(), offsets_.size());
+  w.putArray(entries_.data(), entries_.size());
+  const auto crc = static_cast<std::uint32_t>(crc32_z(0, reinterpret_cast<const Bytef*>(w.bytes.data()), w.bytes.size()));
+  w.put(crc);
+  std::ofstream out(path, std::ios::binary);
+  if (!out) throw Error(fmt::format("{}: cannot write database file", path));
+  out.write(w.bytes.data(), static_cast<std::streamsize>(w.bytes.size()));
+  if (!out) throw Error(fmt::format("{}: write failed", path));
+}
+
+ModelDatabase ModelDatabase::load(const std::string& path) {
+  const std::string bytes = detail::readFileBytes(path);
+  if (bytes.size() < sizeof kMagic + 8 || bytes.compare(0, sizeof kMagic, kMagic, sizeof kMagic) != 0)
+    detail::fail(path, "not a binpose database file (bad magic)");
+  std::uint32_t version = 0;
+  std::memcpy(&version, bytes.data() + sizeof kMagic, sizeof version);
+  if (version != kFormatVersion)
+    detail::fail(path, fmt::format("database format version {} is not supported (this build reads {}); retrain it",
+                                   version, kFormatVersion));
+  const std::size_t body = bytes.size() - sizeof(std::uint32_t);
+  std::uint32_t stored_crc = 0;
+  std::memcpy(&stored_crc, bytes.data() + body, sizeof stored_crc);
+  if (static_cast<std::uint32_t>(crc32_z(0, reinterpret_cast<const Bytef*>(bytes.data()), body)) != stored_crc)
+    detail::fail(path, "database file is corrupt or truncated (checksum mismatch)");
+
+  Reader r(path, bytes, body);
+  char magic[sizeof kMagic];
+  r.getArray(magic, sizeof magic, "header");
+  r.get<std::uint32_t>("header");
+  QuantizationParams q;
+  q.d_dist = r.get<float>("parameters");
+  q.d_angle = r.get<float>("parameters");
+  q.overlap = r.get<float>("parameters");
+  ModelDatabase db;
+  db.model_.diameter = r.get<float>("parameters");
+  db.model_.area = r.get<double>("parameters");
+  db.model_.sample_radius = r.get<float>("parameters");
+  const auto n_points = r.get<std::uint32_t>("parameters");
+  const auto n_keys = r.get<std::uint32_t>("parameters");
+  const auto n_entries = r.get<std::uint64_t>("parameters");
+  try {
+    db.keys_ = KeySpace(q, db.model_.diameter);
+  } catch (const Error& e) {
+    detail::fail(path, fmt::format("invalid parameters in database ({})", e.what()));
+  }
+  if (db.keys_.size() != n_keys || n_points < 2 || n_points > 65535)
+    detail::fail(path, "database header is inconsistent");
+  const std::size_t expected = std::size_t{n_points} * 24 + (std::size_t{n_keys} + 1) * 4 + n_entries * 2;
+  if (r.remaining() != expected) detail::fail(path, "database size does not match its header");
+  db.model_.points.resize(n_points);
+  db.model_.normals.resize(n_points);
+  for (Vec3& p : db.model_.points) r.getArray(p.data(), 3, "model points");
+  for (Vec3& nrm : db.model_.normals) r.getArray(nrm.data(), 3, "model normals");
+  db.offsets_.resize(std::size_t{n_keys} + 1);
+  r.getArray(db.offsets_.data(), db.offsets_.size(), "offsets");
+  db.entries_.resize(n_entries);
+  r.getArray(db.entries_.data(), db.entries_.size(), "entries");
+  // Structural checks, so that no lookup can read out of bounds even from a crafted file.
+  if (db.offsets_.front() != 0 || db.offsets_.back() != n_entries || !std::is_sorted(db.offsets_.begin(), db.offsets_.end()))
+    detail::fail(path, "database offsets are inconsistent");
+  if (std::any_of(db.entries_.begin(), db.entries_.end(), [&](PointId id) { return id >= n_points; }))
+    detail::fail(path, "database refers to a model point that does not exist");
+  return db;
+}
+
+}  // namespace binpose

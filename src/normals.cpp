@@ -1,0 +1,55 @@
+// Plane-fit normals (thesis 5.2.2).
+#include <binpose/normals.hpp>
+
+#include "kdtree.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <fmt/format.h>
+#include <tbb/parallel_for.h>
+
+namespace binpose {
+
+bool fitPlaneNormal(const Points& points, Vec3& normal) {
+  if (points.size() < 3) return false;
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (const Vec3& p : points) {
+    if (!p.allFinite()) return false;
+    centroid += p.cast<double>();
+  }
+  centroid /= static_cast<double>(points.size());
+  Eigen::Matrix3d W = Eigen::Matrix3d::Zero();  // W = Q^T Q (eq. 33-35)
+  for (const Vec3& p : points) {
+    const Eigen::Vector3d q = p.cast<double>() - centroid;
+    W += q * q.transpose();
+  }
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(W);  // eigenvalues ascending (eq. 36-38)
+  const Eigen::Vector3d lambda = solver.eigenvalues();
+  if (solver.info() != Eigen::Success || !(lambda[1] > 1e-12 * std::max(lambda[2], 1e-30))) return false;
+  normal = solver.eigenvectors().col(0).cast<float>();
+  return normalizeSafe(normal);
+}
+
+Points estimateNormals(const Points& cloud, const Points& queries, int k, const Vec3& viewpoint) {
+  if (k < 3) throw Error(fmt::format("normal estimation needs k >= 3 neighbours, got {}", k));
+  Points normals(queries.size(), Vec3::Zero());
+  if (cloud.size() < 3) return normals;
+  const detail::KdTree tree(cloud);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, queries.size(), 256), [&](const auto& range) {
+    std::vector<std::uint32_t> idx(static_cast<std::size_t>(k));
+    std::vector<float> dist(static_cast<std::size_t>(k));
+    Points neighbours;
+    for (std::size_t i = range.begin(); i != range.end(); ++i) {
+      if (!queries[i].allFinite()) continue;
+      const std::size_t found = tree.knn(queries[i], static_cast<std::size_t>(k), idx.data(), dist.data());
+      neighbours.clear();
+      for (std::size_t j = 0; j < found; ++j) neighbours.push_back(cloud[idx[j]]);
+      Vec3 n;
+      if (!fitPlaneNormal(neighbours, n)) continue;
+      if (n.dot(viewpoint - queries[i]) < 0) n = -n;  // towards the sensor
+      normals[i] = n;
+    }
+  });
+  return normals;
+}
+
+}  // namespace binpose

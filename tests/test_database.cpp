@@ -1,0 +1,128 @@
+// The feature database (thesis 4.2): contents against brute force, save/load, refusal of bad files.
+#include <binpose/model_database.hpp>
+#include <binpose/geometry.hpp>
+#include <binpose/shapes.hpp>
+
+#include "test_util.hpp"
+
+#include <tbb/global_control.h>
+
+#include <algorithm>
+#include <set>
+
+using namespace binpose;
+
+namespace {
+OrientedModel smallModel(int points = 300) {
+  ModelParams params;
+  params.num_points = points;
+  return prepareModel(makeBox({30, 20, 10}, 2), params);
+}
+
+void expectSameTable(const ModelDatabase& a, const ModelDatabase& b) {
+  ASSERT_EQ(a.keySpace().size(), b.keySpace().size());
+  ASSERT_EQ(a.entryCount(), b.entryCount());
+  for (std::uint32_t k = 0; k < a.keySpace().size(); ++k) {
+    const auto x = a.lookup(k), y = b.lookup(k);
+    ASSERT_TRUE(std::equal(x.begin(), x.end(), y.begin(), y.end())) << "key " << k;
+  }
+}
+}  // namespace
+
+TEST(Database, MatchesBruteForce) {
+  const OrientedModel model = smallModel();
+  const QuantizationParams q = defaultQuantization(model.diameter);
+  const ModelDatabase db = ModelDatabase::build(model, q);
+  // Brute force: the set of (key, i) over every directed pair, with the overlap rule.
+  std::set<std::pair<std::uint32_t, std::uint32_t>> expected;
+  std::array<std::uint32_t, KeySpace::kMaxKeys> keys{};
+  const std::size_t n = model.points.size();
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t j = 0; j < n; ++j) {
+      PairFeature f;
+      if (i == j || !computeFeature(model.points[i], model.normals[i], model.points[j], model.normals[j], f)) continue;
+      const int c = db.keySpace().overlapKeys(f, keys);
+      ASSERT_GE(c, 1);
+      for (int k = 0; k < c; ++k) expected.insert({keys[k], static_cast<std::uint32_t>(i)});
+    }
+  EXPECT_EQ(db.entryCount(), expected.size());
+  std::uint64_t seen = 0;
+  for (std::uint32_t k = 0; k < db.keySpace().size(); ++k) {
+    const auto ids = db.lookup(k);
+    EXPECT_TRUE(std::is_sorted(ids.begin(), ids.end()));
+    EXPECT_EQ(std::adjacent_find(ids.begin(), ids.end()), ids.end()) << "a model point twice under key " << k;
+    for (auto id : ids) {
+      EXPECT_TRUE(expected.count({k, id})) << "unexpected point " << id << " under key " << k;
+      ++seen;
+    }
+  }
+  EXPECT_EQ(seen, expected.size());
+  EXPECT_TRUE(db.lookup(KeySpace::kInvalid).empty());
+}
+
+TEST(Database, SameTableWhateverTheThreadCount) {
+  const OrientedModel model = smallModel(500);
+  const QuantizationParams q = defaultQuantization(model.diameter);
+  ModelDatabase one, many;
+  {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
+    one = ModelDatabase::build(model, q);
+  }
+  many = ModelDatabase::build(model, q);
+  expectSameTable(one, many);
+}
+
+TEST(Database, SaveLoadRoundTrip) {
+  const ModelDatabase db = ModelDatabase::build(smallModel(), defaultQuantization(30.0f));
+  const std::string path = test::tempPath("db.bpdb");
+  db.save(path);
+  const ModelDatabase back = ModelDatabase::load(path);
+  expectSameTable(db, back);
+  EXPECT_EQ(back.model().points, db.model().points);
+  EXPECT_EQ(back.model().normals, db.model().normals);
+  EXPECT_EQ(back.model().diameter, db.model().diameter);
+  EXPECT_EQ(back.keySpace().params().d_dist, db.keySpace().params().d_dist);
+  EXPECT_EQ(back.keySpace().params().d_angle, db.keySpace().params().d_angle);
+  EXPECT_EQ(back.keySpace().params().overlap, db.keySpace().params().overlap);
+}
+
+TEST(Database, RefusesCorruptTruncatedAndForeignFiles) {
+  const ModelDatabase db = ModelDatabase::build(smallModel(), defaultQuantization(30.0f));
+  const std::string path = test::tempPath("db.bpdb");
+  db.save(path);
+  const std::string good = test::readAll(path);
+  auto refusal = [&](const std::string& bytes) -> std::string {
+    const std::string bad = test::tempPath("bad.bpdb");
+    test::writeAll(bad, bytes);
+    try {
+      ModelDatabase::load(bad);
+    } catch (const Error& e) {
+      return e.what();
+    }
+    return "";
+  };
+  std::string flipped = good;
+  flipped[good.size() / 2] ^= 0x5A;
+  EXPECT_NE(refusal(flipped).find("corrupt"), std::string::npos);
+  EXPECT_NE(refusal(good.substr(0, good.size() / 3)).find("corrupt or truncated"), std::string::npos);
+  EXPECT_NE(refusal(good.substr(0, 10)).find("database"), std::string::npos);
+  std::string version = good;
+  version[8] = 99;  // format version field follows the 8-byte magic
+  EXPECT_NE(refusal(version).find("version 99"), std::string::npos);
+  std::string magic = good;
+  magic[0] = 'X';
+  EXPECT_NE(refusal(magic).find("bad magic"), std::string::npos);
+  EXPECT_NE(refusal("ply\nformat ascii 1.0\n").find("bad magic"), std::string::npos);
+}
+
+TEST(Database, RefusesBadModels) {
+  OrientedModel model = smallModel(100);
+  model.normals[3] = Vec3(0, 0, 0);
+  EXPECT_THROW(ModelDatabase::build(model, defaultQuantization(30.0f)), Error);
+  model = smallModel(100);
+  model.points[5].x() = NAN;
+  EXPECT_THROW(ModelDatabase::build(model, defaultQuantization(30.0f)), Error);
+  model = smallModel(100);
+  model.normals.pop_back();
+  EXPECT_THROW(ModelDatabase::build(model, defaultQuantization(30.0f)), Error);
+}

@@ -1,0 +1,137 @@
+// Model preparation on real models, and `binpose train` end to end.
+#include <binpose/geometry.hpp>
+#include <binpose/io.hpp>
+#include <binpose/model.hpp>
+#include <binpose/model_database.hpp>
+
+#include "test_util.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdio>
+#include <cstdlib>
+
+using namespace binpose;
+using test::dataPath;
+
+namespace {
+struct CliRun {
+  int code;
+  std::string out;
+};
+
+/// Runs the CLI with stdout and stderr captured.
+CliRun runCli(const std::string& args) {
+  const std::string log = test::tempPath("cli.log");
+  const int status = std::system((std::string(BINPOSE_CLI) + " " + args + " > " + log + " 2>&1").c_str());
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, test::readAll(log)};
+}
+}  // namespace
+
+TEST(Model, IpdPartMeshDiameterMatchesModelsInfo) {
+  REQUIRE_DATA("ipd_parts/models/obj_000004.ply");
+  const auto info = nlohmann::json::parse(test::readAll(dataPath("ipd_parts/models/models_info.json")));
+  const OrientedModel model = prepareModel(readMesh(dataPath("ipd_parts/models/obj_000004.ply")), ModelParams{});
+  EXPECT_NEAR(double(model.points.size()), 4000.0, 40.0);
+  // samples of the surface span almost the whole part: diameter within 2% below the BOP value
+  const double bop = info["4"]["diameter"].get<double>();
+  EXPECT_LE(model.diameter, bop + 1e-3);
+  EXPECT_GT(model.diameter, 0.98 * bop);
+  for (const Vec3& n : model.normals) ASSERT_NEAR(n.norm(), 1.0f, 1e-5f);
+}
+
+TEST(Model, UwaModelNormalsAgreeWithTheFile) {
+  REQUIRE_DATA("uwa/parasaurolophus_6700.ply");
+  const Mesh mesh = readPlyMesh(dataPath("uwa/parasaurolophus_6700.ply"));
+  const OrientedModel model = prepareModel(mesh, ModelParams{});
+  // Face normals oriented by the file's vertex normals: they agree with the nearest vertex's.
+  int agree = 0;
+  for (std::size_t i = 0; i < model.points.size(); ++i) {
+    std::size_t best = 0;
+    for (std::size_t v = 1; v < mesh.vertices.size(); ++v)
+      if ((mesh.vertices[v] - model.points[i]).squaredNorm() < (mesh.vertices[best] - model.points[i]).squaredNorm()) best = v;
+    if (model.normals[i].dot(mesh.normals[best]) > 0) ++agree;
+  }
+  EXPECT_GT(agree, int(0.97 * model.points.size()));
+  EXPECT_GT(model.diameter, 300.0f);  // README: about 312 mm
+  EXPECT_LT(model.diameter, 320.0f);
+}
+
+TEST(Model, PointCloudModelGetsSensorFacingNormals) {
+  REQUIRE_DATA("pcl_milk/milk.pcd");
+  const PointCloud milk = readPcd(dataPath("pcl_milk/milk.pcd"), 1000.0);
+  ModelParams params;
+  params.num_points = 2000;
+  const OrientedModel model = prepareModel(milk, params);
+  EXPECT_NEAR(double(model.points.size()), 2000.0, 20.0);
+  for (std::size_t i = 0; i < model.points.size(); ++i)
+    EXPECT_GT(model.normals[i].dot(milk.viewpoint - model.points[i]), 0.0f);
+  params.rho_model = 0.5;
+  EXPECT_THROW(prepareModel(milk, params), Error);  // no area known for a cloud
+}
+
+TEST(Model, RejectsAbsurdParameters) {
+  Mesh tri;
+  tri.vertices = {{0, 0, 0}, {10, 0, 0}, {0, 10, 0}};
+  tri.faces = {{0, 1, 2}};
+  ModelParams p;
+  p.num_points = 5;
+  EXPECT_THROW(prepareModel(tri, p), Error);
+  p = ModelParams{};
+  p.num_points = 100000;
+  EXPECT_THROW(prepareModel(tri, p), Error);
+  p = ModelParams{};
+  p.rho_model = -1;
+  EXPECT_THROW(prepareModel(tri, p), Error);
+  p = ModelParams{};
+  p.rho_model = 1000;  // 50 mm^2 x 1000 points/mm^2 = 50000: fine; 1e6 is not
+  p.rho_model = 1e6;
+  EXPECT_THROW(prepareModel(tri, p), Error);
+}
+
+TEST(TrainCli, UwaAndIpdModelsTrainAndLoad) {
+  REQUIRE_DATA("uwa/parasaurolophus_6700.ply");
+  for (const std::string model : {"uwa/parasaurolophus_6700.ply", "ipd_parts/models/obj_000008.ply"}) {
+    const std::string db = test::tempPath("model.bpdb");
+    const CliRun run = runCli(fmt::format("train --model {} --out {} --points 1500", dataPath(model), db));
+    ASSERT_EQ(run.code, 0) << run.out;
+    EXPECT_NE(run.out.find("diameter"), std::string::npos);
+    EXPECT_NE(run.out.find("entries"), std::string::npos);
+    const ModelDatabase loaded = ModelDatabase::load(db);
+    EXPECT_NEAR(double(loaded.model().points.size()), 1500.0, 15.0);
+    EXPECT_GT(loaded.stats().keys_used, 1000u);
+  }
+}
+
+TEST(TrainCli, MetresAndParameters) {
+  REQUIRE_DATA("pcl_milk/milk.pcd");
+  const std::string db = test::tempPath("milk.bpdb");
+  const CliRun run = runCli(fmt::format("train --model {} --out {} --units m --points 1000 --d-dist 3 --d-angle 10 --overlap 0.2",
+                                     dataPath("pcl_milk/milk.pcd"), db));
+  ASSERT_EQ(run.code, 0) << run.out;
+  const ModelDatabase loaded = ModelDatabase::load(db);
+  EXPECT_FLOAT_EQ(loaded.keySpace().params().d_dist, 3.0f);
+  EXPECT_NEAR(test::deg(loaded.keySpace().params().d_angle), 10.0, 1e-4);
+  EXPECT_FLOAT_EQ(loaded.keySpace().params().overlap, 0.2f);
+  EXPECT_GT(loaded.model().diameter, 100.0f);  // a carton of about 0.2 m, now in mm
+}
+
+TEST(TrainCli, BadInputExitsTwoWithOneLine) {
+  const std::string junk = test::tempPath("junk.ply");
+  test::writeAll(junk, "ply\nformat ascii 1.0\nelement vertex 100\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n");
+  CliRun run = runCli(fmt::format("train --model {} --out {}", junk, test::tempPath("x.bpdb")));
+  EXPECT_EQ(run.code, 2);
+  EXPECT_NE(run.out.find("truncated"), std::string::npos) << run.out;
+  EXPECT_EQ(std::count(run.out.begin(), run.out.end(), '\n'), 1) << run.out;
+  run = runCli(fmt::format("train --model {} --out {} --d-angle 0", dataPath("ipd_parts/models/obj_000001.ply"),
+                           test::tempPath("x.bpdb")));
+  EXPECT_EQ(run.code, 2);
+  EXPECT_NE(run.out.find("d_angle"), std::string::npos) << run.out;
+  run = runCli(fmt::format("train --model {} --out {} --units inch", dataPath("ipd_parts/models/obj_000001.ply"),
+                           test::tempPath("x.bpdb")));
+  EXPECT_EQ(run.code, 2);
+  run = runCli(fmt::format("train --model {} --out {} --points 3", dataPath("ipd_parts/models/obj_000001.ply"),
+                           test::tempPath("x.bpdb")));
+  EXPECT_EQ(run.code, 2);
+  EXPECT_NE(run.out.find("model points"), std::string::npos) << run.out;
+}

@@ -1,0 +1,96 @@
+// Plane-fit normals (thesis 5.2.2) and model normals from faces (chapter 6).
+#include <binpose/features.hpp>
+#include <binpose/geometry.hpp>
+#include <binpose/model.hpp>
+#include <binpose/normals.hpp>
+#include <binpose/shapes.hpp>
+
+#include "test_util.hpp"
+
+#include <cmath>
+
+using namespace binpose;
+using binpose::test::deg;
+
+TEST(Normals, PlaneFitOfNoisyTiltedPlane) {
+  const Vec3 n_true = Vec3(1, 2, 3).normalized();
+  const Vec3 u = n_true.unitOrthogonal(), v = n_true.cross(u);
+  Rng rng(1);
+  Points pts;
+  for (int i = 0; i < 200; ++i)
+    pts.push_back(Vec3(5, 5, 5) + float(20 * rng.uniform() - 10) * u + float(20 * rng.uniform() - 10) * v +
+                  float(0.02 * (rng.uniform() - 0.5)) * n_true);
+  Vec3 n;
+  ASSERT_TRUE(fitPlaneNormal(pts, n));
+  EXPECT_LT(deg(std::acos(std::min(1.0f, std::abs(n.dot(n_true))))), 0.2);
+}
+
+TEST(Normals, DegenerateNeighbourhoodsAreRefused) {
+  Vec3 n;
+  EXPECT_FALSE(fitPlaneNormal({{0, 0, 0}, {1, 0, 0}}, n));  // too few
+  EXPECT_FALSE(fitPlaneNormal({{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {3, 0, 0}}, n));  // collinear
+  EXPECT_FALSE(fitPlaneNormal({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {NAN, 0, 0}}, n));  // NaN
+  EXPECT_FALSE(fitPlaneNormal({{1, 1, 1}, {1, 1, 1}, {1, 1, 1}}, n));  // one point thrice
+}
+
+TEST(Normals, EstimatedSphereNormalsFaceTheSensor) {
+  // Dense points on a sphere of radius 30 around (0, 0, 500), viewed from the origin.
+  const Vec3 centre(0, 0, 500);
+  Rng rng(2);
+  Points cloud;
+  for (int i = 0; i < 40000; ++i) {
+    Vec3 d(float(rng.uniform() - 0.5), float(rng.uniform() - 0.5), float(rng.uniform() - 0.5));
+    if (!normalizeSafe(d)) continue;
+    cloud.push_back(centre + 30 * d);
+  }
+  const Points queries(cloud.begin(), cloud.begin() + 2000);
+  const Points normals = estimateNormals(cloud, queries, 6, Vec3::Zero());
+  double sum = 0;
+  for (std::size_t i = 0; i < queries.size(); ++i) {
+    ASSERT_NEAR(normals[i].norm(), 1.0f, 1e-4);
+    EXPECT_GT(normals[i].dot(-queries[i]), 0.0f) << "normal must face the sensor at the origin";
+    const Vec3 radial = (queries[i] - centre).normalized();
+    sum += deg(std::acos(std::min(1.0f, std::abs(normals[i].dot(radial)))));
+  }
+  EXPECT_LT(sum / queries.size(), 3.0);  // mean error of a 6-neighbour fit on a 30 mm sphere
+}
+
+TEST(Normals, MeshModelNormalsOfSphereAreRadial) {
+  ModelParams params;
+  const OrientedModel model = prepareModel(makeSphere(30, 4), params);
+  ASSERT_NEAR(double(model.points.size()), 4000.0, 40.0);
+  double sum = 0, worst = 0;
+  for (std::size_t i = 0; i < model.points.size(); ++i) {
+    const double err = deg(std::acos(std::clamp(model.normals[i].dot(model.points[i].normalized()), -1.0f, 1.0f)));
+    sum += err;
+    worst = std::max(worst, err);
+  }
+  EXPECT_LT(sum / model.points.size(), 0.3);  // smooth interpolated normals, not facets
+  EXPECT_LT(worst, 1.5);                      // outward everywhere (an inward one would be 180)
+  EXPECT_NEAR(model.diameter, 60.0f, 0.5f);
+}
+
+TEST(Normals, MeshModelNormalsOfBoxAreFaceAxes) {
+  const Vec3 size(60, 40, 20);
+  ModelParams params;
+  params.num_points = 2000;
+  const OrientedModel model = prepareModel(makeBox(size, 3), params);
+  for (std::size_t i = 0; i < model.points.size(); ++i) {
+    const Vec3& p = model.points[i];
+    int axis = 0;  // the face the sample lies on
+    for (int a = 1; a < 3; ++a)
+      if (std::abs(std::abs(p[a]) - size[a] / 2) < std::abs(std::abs(p[axis]) - size[axis] / 2)) axis = a;
+    Vec3 expected = Vec3::Zero();
+    expected[axis] = p[axis] > 0 ? 1.0f : -1.0f;
+    EXPECT_LT(deg(angleBetween(model.normals[i], expected)), 0.01) << "sample " << i << " at " << p.transpose();
+  }
+}
+
+TEST(Normals, InwardWoundMeshStillGetsOutwardNormals) {
+  Mesh sphere = makeSphere(20, 3);
+  for (auto& f : sphere.faces) std::swap(f[1], f[2]);  // wind every face the wrong way
+  ModelParams params;
+  params.num_points = 1000;
+  const OrientedModel model = prepareModel(sphere, params);
+  for (std::size_t i = 0; i < model.points.size(); ++i) EXPECT_GT(model.normals[i].dot(model.points[i]), 0.0f);
+}

@@ -1,0 +1,102 @@
+// Poisson-disk sampling (thesis 6.2).
+#include <binpose/geometry.hpp>
+#include <binpose/sampling.hpp>
+#include <binpose/shapes.hpp>
+
+#include "test_util.hpp"
+
+#include <cmath>
+
+using namespace binpose;
+
+namespace {
+Points poolOf(const Mesh& mesh, std::size_t n, std::uint64_t seed) {
+  Points pts;
+  for (const auto& s : sampleSurfaceUniform(mesh, n, seed)) pts.push_back(s.point);
+  return pts;
+}
+
+float minPairDistance(const Points& pts) {
+  float best = INFINITY;
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    for (std::size_t j = i + 1; j < pts.size(); ++j) best = std::min(best, (pts[i] - pts[j]).norm());
+  return best;
+}
+
+float farthestFromSamples(const Points& probes, const Points& samples) {
+  float worst = 0;
+  for (const Vec3& p : probes) {
+    float nearest = INFINITY;
+    for (const Vec3& s : samples) nearest = std::min(nearest, (p - s).norm());
+    worst = std::max(worst, nearest);
+  }
+  return worst;
+}
+}  // namespace
+
+TEST(Sampling, MeshAreaOfBoxAndSphere) {
+  EXPECT_NEAR(meshArea(makeBox({60, 40, 20}, 3)), 2 * (60 * 40 + 60 * 20 + 40 * 20), 1e-2);
+  // an icosphere inscribed in the sphere: area a little below 4 pi r^2
+  const double sphere = meshArea(makeSphere(10, 4));
+  EXPECT_LT(sphere, 4 * M_PI * 100);
+  EXPECT_GT(sphere, 0.995 * 4 * M_PI * 100);
+}
+
+TEST(Sampling, UniformSamplesFollowArea) {
+  const Vec3 size(60, 40, 20);
+  const Mesh box = makeBox(size, 1);
+  const auto samples = sampleSurfaceUniform(box, 60000, 3);
+  // Share of samples on the faces normal to x, y, z against the area share.
+  double count[3] = {0, 0, 0};
+  for (const auto& s : samples)
+    for (int a = 0; a < 3; ++a)
+      if (std::abs(std::abs(s.point[a]) - size[a] / 2) < 1e-3f) count[a] += 1;
+  const double total = 2 * (60 * 40 + 60 * 20 + 40 * 20);
+  const double expected[3] = {2 * 40 * 20 / total, 2 * 60 * 20 / total, 2 * 60 * 40 / total};
+  for (int a = 0; a < 3; ++a) EXPECT_NEAR(count[a] / samples.size(), expected[a], 0.01) << "axis " << a;
+}
+
+TEST(Sampling, PoissonDiskSpacingAndCoverage) {
+  const Mesh box = makeBox({60, 40, 20}, 2);
+  const Points pool = poolOf(box, 40000, 5);
+  const float radius = 2.0f;
+  const auto kept = poissonDiskSelect(pool, radius, 9);
+  Points samples;
+  for (auto i : kept) samples.push_back(pool[i]);
+  ASSERT_GT(samples.size(), 100u);
+  EXPECT_GE(minPairDistance(samples), radius);  // no two samples closer than the radius
+  EXPECT_LE(farthestFromSamples(pool, samples), radius);  // maximal: every candidate is covered
+  // and the surface itself is covered: fresh points (another seed) lie near a sample
+  EXPECT_LT(farthestFromSamples(poolOf(box, 5000, 77), samples), 1.6f * radius);
+}
+
+TEST(Sampling, CountTargetAndDeterminism) {
+  const Mesh sphere = makeSphere(30, 4);
+  const Points pool = poolOf(sphere, 80000, 1);
+  float r1 = 0, r2 = 0;
+  const auto a = poissonDiskSelectCount(pool, 4000, 42, &r1);
+  const auto b = poissonDiskSelectCount(pool, 4000, 42, &r2);
+  EXPECT_NEAR(double(a.size()), 4000.0, 40.0);
+  EXPECT_EQ(a, b);
+  EXPECT_EQ(r1, r2);
+  Points samples;
+  for (auto i : a) samples.push_back(pool[i]);
+  EXPECT_GE(minPairDistance(samples), r1);
+  // the radius of a well-spread set: between a hexagonal packing bound and half of it
+  const double area = meshArea(sphere);
+  const double hex = std::sqrt(2 * area / (std::sqrt(3.0) * 4000));  // spacing of a perfect hex grid
+  EXPECT_LT(r1, hex);
+  EXPECT_GT(r1, 0.6 * hex);
+  const auto c = poissonDiskSelectCount(pool, 4000, 43);
+  EXPECT_NE(a, c);  // the seed matters
+}
+
+TEST(Sampling, RejectsBadArguments) {
+  const Points pool = poolOf(makeSphere(5, 2), 100, 1);
+  EXPECT_THROW(poissonDiskSelectCount(pool, 0, 1), Error);
+  EXPECT_THROW(poissonDiskSelect(pool, -1.0f, 1), Error);
+  Mesh flat;
+  flat.vertices = {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}};
+  flat.faces = {{0, 1, 2}};
+  EXPECT_THROW(sampleSurfaceUniform(flat, 10, 1), Error);
+}

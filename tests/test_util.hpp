@@ -1,0 +1,41 @@
+#pragma once
+#include <binpose/types.hpp>
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+namespace binpose::test {
+
+/// A file of ../shared/data (third-party data, read where it lies).
+inline std::string dataPath(const std::string& relative) { return std::string(BINPOSE_DATA_DIR) + "/" + relative; }
+
+/// A fresh temporary file path for this test.
+inline std::string tempPath(const std::string& name) {
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  const auto dir = std::filesystem::temp_directory_path() / "binpose_tests";
+  std::filesystem::create_directories(dir);
+  return (dir / (std::string(info->test_suite_name()) + "_" + info->name() + "_" + name)).string();
+}
+
+inline std::string readAll(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+inline void writeAll(const std::string& path, const std::string& bytes) {
+  std::ofstream out(path, std::ios::binary);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+}
+
+inline double deg(double rad) { return rad * 180.0 / 3.14159265358979323846; }
+
+}  // namespace binpose::test
+
+/// The shared data is part of the test set-up; a missing folder is a failure, not a skip.
+#define REQUIRE_DATA(rel)                                                                     \
+  ASSERT_TRUE(std::filesystem::exists(::binpose::test::dataPath(rel)))                        \
+      << "missing " << ::binpose::test::dataPath(rel) << " (../shared/data must sit beside the repo)"
