@@ -5,6 +5,7 @@
 
 #include <binpose/geometry.hpp>
 
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 #include <zlib.h>
 
@@ -21,18 +22,25 @@ static_assert(std::endian::native == std::endian::little, "database files are li
 constexpr char kMagic[8] = {'B', 'P', 'O', 'S', 'E', 'D', 'B', '\0'};
 
 /// Sorted, distinct keys of every directed feature starting at model point i (eq. 5, 7).
-std::vector<std::uint32_t> keysOfPoint(const OrientedModel& m, const KeySpace& keys, std::size_t i) {
+/// `stamp` (one slot per key, owned by the calling thread) marks keys already taken for i, so
+/// that only the distinct keys are sorted.
+std::vector<std::uint32_t> keysOfPoint(const OrientedModel& m, const KeySpace& keys, std::size_t i,
+                                       std::vector<std::uint32_t>& stamp) {
+  const auto mark = static_cast<std::uint32_t>(i + 1);
   std::vector<std::uint32_t> out;
-  out.reserve(m.points.size() * 3);
+  out.reserve(m.points.size() * 2);
   std::array<std::uint32_t, KeySpace::kMaxKeys> buf{};
   PairFeature f;
   for (std::size_t j = 0; j < m.points.size(); ++j) {
     if (j == i || !computeFeature(m.points[i], m.normals[i], m.points[j], m.normals[j], f)) continue;
     const int n = keys.overlapKeys(f, buf);
-    out.insert(out.end(), buf.begin(), buf.begin() + n);
+    for (int k = 0; k < n; ++k)
+      if (stamp[buf[k]] != mark) {  // m_i at most once per key
+        stamp[buf[k]] = mark;
+        out.push_back(buf[k]);
+      }
   }
   std::sort(out.begin(), out.end());
-  out.erase(std::unique(out.begin(), out.end()), out.end());  // m_i at most once per key
   return out;
 }
 
@@ -95,7 +103,8 @@ ModelDatabase ModelDatabase::build(OrientedModel model, const QuantizationParams
   db.keys_ = KeySpace(params, model.diameter);
   const std::size_t n = model.points.size();
   std::vector<std::vector<std::uint32_t>> per_point(n);
-  tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) { per_point[i] = keysOfPoint(model, db.keys_, i); });
+  tbb::enumerable_thread_specific<std::vector<std::uint32_t>> stamps(std::vector<std::uint32_t>(db.keys_.size(), 0));
+  tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) { per_point[i] = keysOfPoint(model, db.keys_, i, stamps.local()); });
 
   std::uint64_t total = 0;
   for (const auto& k : per_point) total += k.size();
