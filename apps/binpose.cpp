@@ -2,6 +2,7 @@
 #include <binpose/io.hpp>
 #include <binpose/model.hpp>
 #include <binpose/model_database.hpp>
+#include <binpose/shapes.hpp>
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
@@ -11,11 +12,23 @@
 #include <filesystem>
 #include <numbers>
 #include <optional>
+#include <string_view>
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
 double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+constexpr std::string_view kBuiltin = "builtin:";
+
+/// A model file, or a built-in part named "builtin:NAME" (mm).
+binpose::ModelFile loadModel(const std::string& spec, double scale) {
+  if (spec.rfind(kBuiltin, 0) != 0) return binpose::readModelFile(spec, scale);
+  binpose::ModelFile file;
+  file.is_mesh = true;
+  file.mesh = binpose::builtinPart(spec.substr(kBuiltin.size()));
+  return file;
+}
 
 struct TrainOptions {
   std::string model, out, units = "mm";
@@ -27,7 +40,8 @@ struct TrainOptions {
 
 void addTrain(CLI::App& app, TrainOptions& o) {
   CLI::App* train = app.add_subcommand("train", "Build a model's feature database (thesis ch. 4.2 and 6)");
-  train->add_option("--model", o.model, "Model: mesh (PLY/STL/OBJ) or point cloud (PLY/PCD)")->required()->check(CLI::ExistingFile);
+  train->add_option("--model", o.model, "Model: mesh (PLY/STL/OBJ), point cloud (PLY/PCD), or builtin:cap|sphere|box")
+      ->required();
   train->add_option("--out", o.out, "Database file to write")->required();
   train->add_option("--points", o.points, "Model points n_M after Poisson-disk sampling")->capture_default_str();
   train->add_option("--rho-model", o.rho_model, "Model density rho_model, points/mm^2 (overrides --points; meshes only)");
@@ -45,7 +59,7 @@ int runTrain(const TrainOptions& o) {
   params.num_points = o.points;
   params.rho_model = o.rho_model;
   params.seed = o.seed;
-  const binpose::ModelFile file = binpose::readModelFile(o.model, scale);
+  const binpose::ModelFile file = loadModel(o.model, scale);
   const binpose::OrientedModel model =
       file.is_mesh ? binpose::prepareModel(file.mesh, params) : binpose::prepareModel(file.cloud, params);
   const double t_sample = secondsSince(t0);

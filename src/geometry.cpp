@@ -4,6 +4,8 @@
 #include <tbb/parallel_reduce.h>
 
 #include <algorithm>
+#include <array>
+#include <map>
 
 namespace binpose {
 
@@ -28,6 +30,20 @@ bool bounds(const Points& points, Vec3& lo, Vec3& hi) {
     hi = hi.cwiseMax(p);
   }
   return true;
+}
+
+void weldVertices(Mesh& mesh) {
+  std::map<std::array<float, 3>, int> index;
+  std::vector<int> remap(mesh.vertices.size());
+  Points welded;
+  for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
+    const Vec3& v = mesh.vertices[i];
+    const auto [it, inserted] = index.try_emplace({v.x(), v.y(), v.z()}, static_cast<int>(welded.size()));
+    if (inserted) welded.push_back(v);
+    remap[i] = it->second;
+  }
+  for (auto& f : mesh.faces) f = Eigen::Vector3i(remap[f[0]], remap[f[1]], remap[f[2]]);
+  mesh.vertices = std::move(welded);
 }
 
 }  // namespace binpose

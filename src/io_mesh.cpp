@@ -7,8 +7,7 @@
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
-#include <array>
-#include <map>
+#include <binpose/geometry.hpp>
 
 namespace binpose {
 namespace {
@@ -28,22 +27,6 @@ void appendNode(const aiScene& scene, const aiNode& node, double scale, Mesh& ou
     }
   }
   for (unsigned c = 0; c < node.mNumChildren; ++c) appendNode(scene, *node.mChildren[c], scale, out);
-}
-
-/// Merges vertices at exactly the same position (STL repeats every corner), so that faces share
-/// their corners and normals can be smoothed across edges.
-void weldVertices(Mesh& mesh) {
-  std::map<std::array<float, 3>, int> index;
-  std::vector<int> remap(mesh.vertices.size());
-  Points welded;
-  for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
-    const Vec3& v = mesh.vertices[i];
-    const auto [it, inserted] = index.try_emplace({v.x(), v.y(), v.z()}, static_cast<int>(welded.size()));
-    if (inserted) welded.push_back(v);
-    remap[i] = it->second;
-  }
-  for (auto& f : mesh.faces) f = Eigen::Vector3i(remap[f[0]], remap[f[1]], remap[f[2]]);
-  mesh.vertices = std::move(welded);
 }
 
 }  // namespace

@@ -1,7 +1,10 @@
 #include <binpose/shapes.hpp>
 
+#include <binpose/geometry.hpp>
+
 #include <fmt/format.h>
 
+#include <cmath>
 #include <map>
 
 namespace binpose {
@@ -31,6 +34,7 @@ Mesh makeBox(const Vec3& size, int divisions) {
           mesh.faces.push_back(b);
         }
     }
+  weldVertices(mesh);  // faces share the vertices along the box's edges
   return mesh;
 }
 
@@ -62,6 +66,63 @@ Mesh makeSphere(float radius, int subdivisions) {
   }
   for (Vec3& v : m.vertices) v *= radius;
   return m;
+}
+
+namespace {
+
+/// Revolves a closed (r, z) profile about the z axis; points with r == 0 become poles.
+Mesh revolve(const std::vector<Eigen::Vector2f>& profile, int segments) {
+  Mesh m;
+  std::vector<std::vector<int>> rings;
+  for (const auto& rz : profile) {
+    std::vector<int> ring;
+    if (rz.x() <= 0.0f) {
+      m.vertices.emplace_back(0.0f, 0.0f, rz.y());
+      ring.assign(static_cast<std::size_t>(segments), static_cast<int>(m.vertices.size()) - 1);
+    } else {
+      for (int k = 0; k < segments; ++k) {
+        const float a = 2.0f * float(M_PI) * float(k) / float(segments);
+        ring.push_back(static_cast<int>(m.vertices.size()));
+        m.vertices.emplace_back(rz.x() * std::cos(a), rz.x() * std::sin(a), rz.y());
+      }
+    }
+    rings.push_back(std::move(ring));
+  }
+  for (std::size_t p = 0; p + 1 < rings.size(); ++p)
+    for (int k = 0; k < segments; ++k) {
+      const int k1 = (k + 1) % segments;
+      const int a0 = rings[p][k], a1 = rings[p][k1], b0 = rings[p + 1][k], b1 = rings[p + 1][k1];
+      if (a0 != a1) m.faces.emplace_back(a0, a1, b1);  // skipped where ring a is a pole
+      if (b0 != b1) m.faces.emplace_back(a0, b1, b0);  // skipped where ring b is a pole
+    }
+  return m;
+}
+
+}  // namespace
+
+Mesh makeCap(const CapParams& c) {
+  if (!(c.radius > 0) || !(c.height > 0) || !(c.wall > 0) || c.wall * 2 >= c.radius || c.wall >= c.height ||
+      !(c.fillet >= 0) || c.fillet >= c.height - c.wall || c.fillet >= c.radius - c.wall || c.segments < 8 ||
+      c.fillet_segments < 1)
+    throw Error("cap parameters are inconsistent (need radius > 2 wall, height > wall + fillet, segments >= 8)");
+  // Profile from the outer top pole, over the fillet, down the outside, across the rim, up the
+  // inside to the inner top pole. The material lies to the right of the walk.
+  std::vector<Eigen::Vector2f> profile{{0.0f, c.height}};
+  const Eigen::Vector2f centre(c.radius - c.fillet, c.height - c.fillet);
+  for (int i = 0; i <= c.fillet_segments; ++i) {
+    const float a = 0.5f * float(M_PI) * float(c.fillet_segments - i) / float(c.fillet_segments);
+    profile.push_back(centre + c.fillet * Eigen::Vector2f(std::cos(a), std::sin(a)));
+  }
+  const float inner = c.radius - c.wall;
+  profile.insert(profile.end(), {{c.radius, 0.0f}, {inner, 0.0f}, {inner, c.height - c.wall}, {0.0f, c.height - c.wall}});
+  return revolve(profile, c.segments);
+}
+
+Mesh builtinPart(const std::string& name) {
+  if (name == "cap") return makeCap();
+  if (name == "sphere") return makeSphere(30.0f, 4);
+  if (name == "box") return makeBox({60.0f, 40.0f, 20.0f}, 4);
+  throw Error(fmt::format("unknown built-in part '{}' (known: cap, sphere, box)", name));
 }
 
 }  // namespace binpose

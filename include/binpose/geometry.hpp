@@ -32,4 +32,8 @@ float diameter(const Points& points);
 /// Axis-aligned bounds; false when `points` is empty.
 bool bounds(const Points& points, Vec3& lo, Vec3& hi);
 
+/// Merges vertices at exactly the same position (STL repeats every corner), so that faces share
+/// their corners and normals can be smoothed across edges.
+void weldVertices(Mesh& mesh);
+
 }  // namespace binpose
