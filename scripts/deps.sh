@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# Installs binpose's build and test dependencies from Debian 12's packages (needs root or sudo).
+set -euo pipefail
+packages=(cmake ninja-build g++ pkg-config
+          libeigen3-dev libnanoflann-dev libtbb-dev libcli11-dev nlohmann-json3-dev libfmt-dev
+          libassimp-dev libpng-dev zlib1g-dev liblzf-dev libgtest-dev libbenchmark-dev)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "deps: all ${#packages[@]} packages present"
+  exit 0
+fi
+echo "deps: installing ${missing[*]}"
+SUDO=""
+[ "$(id -u)" -eq 0 ] || SUDO="sudo"
+$SUDO apt-get update -qq
+DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"

@@ -1,0 +1,13 @@
+#!/usr/bin/env bash
+# The test command: installs dependencies, builds, runs every unit test (Release), then again
+# under AddressSanitizer + UndefinedBehaviorSanitizer. Needs ../shared/data beside the repo.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+scripts/deps.sh
+echo "== Release build and tests"
+scripts/build.sh build
+ctest --test-dir build --output-on-failure -j "$(nproc)"
+echo "== ASan + UBSan build and tests"
+scripts/build.sh build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DBINPOSE_SANITIZE=ON -DBINPOSE_BUILD_BENCH=OFF
+ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+  ctest --test-dir build-asan --output-on-failure -j "$(nproc)"
