@@ -1,0 +1,39 @@
+#pragma once
+// Maximum clique of the correspondence graph (thesis 4.5): exact branch and bound on bitsets
+// with greedy-colouring bounds (Tomita & Seki 2003; San Segundo et al. 2011), with a work bound.
+#include <cstdint>
+#include <vector>
+
+namespace binpose {
+
+/// An undirected graph on vertices 0..n-1 as rows of 64-bit words.
+class Graph {
+ public:
+  explicit Graph(int n) : n_(n), words_((n + 63) / 64), bits_(static_cast<std::size_t>(n) * words_, 0) {}
+  void addEdge(int a, int b) {
+    if (a == b) return;
+    bits_[static_cast<std::size_t>(a) * words_ + b / 64] |= 1ull << (b % 64);
+    bits_[static_cast<std::size_t>(b) * words_ + a / 64] |= 1ull << (a % 64);
+  }
+  [[nodiscard]] bool adjacent(int a, int b) const { return (row(a)[b / 64] >> (b % 64)) & 1ull; }
+  [[nodiscard]] const std::uint64_t* row(int v) const { return bits_.data() + static_cast<std::size_t>(v) * words_; }
+  [[nodiscard]] int size() const { return n_; }
+  [[nodiscard]] int words() const { return words_; }
+  [[nodiscard]] int degree(int v) const;
+
+ private:
+  int n_, words_;
+  std::vector<std::uint64_t> bits_;
+};
+
+struct CliqueResult {
+  std::vector<int> vertices;  ///< the largest clique found, ascending
+  bool exact = true;          ///< false when the work bound stopped the search early
+  std::uint64_t nodes = 0;    ///< branch-and-bound nodes expanded
+};
+
+/// A maximum clique of g. The search expands at most `work_limit` nodes; if it has to stop,
+/// the best clique found so far is returned with exact = false. Deterministic.
+CliqueResult maximumClique(const Graph& g, std::uint64_t work_limit = 200000);
+
+}  // namespace binpose

@@ -1,0 +1,64 @@
+#pragma once
+// Parameters of online recognition (thesis chapters 4-5), with the thesis's values as defaults.
+// Distance-like values are for the thesis's 60 mm part (tau_object); scaledToModel() scales
+// them by (model diameter / 60 mm), and an explicit user value replaces the scaled one.
+#include <binpose/types.hpp>
+
+#include <cstdint>
+#include <string>
+
+namespace binpose {
+
+/// How the scan is thinned to rho_sub (5.2.1).
+enum class Subsampling {
+  Random,  ///< the thesis's uniform random selection
+  Voxel,   ///< one scan point per cube of side 1/sqrt(rho_sub): even spacing (binpose's default)
+};
+
+struct DetectionParams {
+  // --- the thesis's pipeline (symbols of chapters 4-5; defaults from Tables 1-7) -----------
+  float r = 25.0f;            ///< r: sampling radius of a sub-group, mm (5.2.3; Tables swept 20-30)
+  float rho_sub = 0.06f;      ///< rho_sub: density after sub-sampling, points/mm^2 (5.2.1; Tables 2-4)
+  float eta = 15.0f;          ///< eta: grid spacing of the sub-group centres, mm (5.2.3; Tables 1, 5-7)
+  float e_gmax = 1.5f;        ///< e_gmax: geometric consistency limit, mm (4.5, eq. 15-16; Table 1)
+  int C_n = 8;                ///< C_n: smallest accepted clique (4.5; Table 1)
+  float sigma_dist = 6.0f;    ///< sigma_dist: removal distance around a found object, mm (5.2.6, eq. 39)
+  int k_normals = 6;          ///< k: neighbours of a scene normal's plane fit in the full scan (5.2.2)
+  Subsampling subsampling = Subsampling::Voxel;
+
+  // --- beyond the thesis (each switchable; the thesis preset turns them off) ----------------
+  bool refine = true;             ///< point-to-plane ICP of each pose against the full scan
+  int icp_iterations = 20;
+  float icp_max_distance = 3.0f;  ///< ICP correspondence gate at the start, mm (halves as it converges)
+  bool verify = true;             ///< score = share of the posed model's sensor-facing points the scan supports
+  float verify_tolerance = 1.0f;  ///< distance within which a scan point supports a model point, mm
+  float min_score = 0.15f;        ///< detections scoring less are rejected (verify only)
+
+  // --- limits and determinism --------------------------------------------------------------
+  int max_instances = 0;              ///< stop after this many detections (0: no limit)
+  std::uint64_t clique_work_limit = 200000;  ///< branch-and-bound nodes per clique search
+  std::uint64_t seed = 1;             ///< random sub-sampling seed
+  Vec3 viewpoint = Vec3::Zero();      ///< sensor origin in the scan's frame (normals face it)
+};
+
+/// The thesis's pipeline as written: random sub-sampling, no refinement, no verification.
+DetectionParams thesisPreset();
+/// binpose's defaults.
+DetectionParams defaultPreset();
+/// A preset by name: "thesis" or "default".
+DetectionParams presetByName(const std::string& name);
+
+/// Distance-like values (r, eta, e_gmax, sigma_dist, ICP gate, verify tolerance) times s and
+/// rho_sub divided by s^2, for s = model_diameter / 60 mm.
+DetectionParams scaledToModel(const DetectionParams& params, float model_diameter);
+
+/// Throws binpose::Error naming the first absurd value.
+void validate(const DetectionParams& params);
+
+/// Overrides fields from a JSON object (keys as the field names; "subsampling": "random"|"voxel",
+/// "viewpoint": [x, y, z]); an unknown key or a wrong type is an error.
+void applyJson(DetectionParams& params, const std::string& json_text, const std::string& source);
+/// All fields as a JSON object text.
+std::string toJson(const DetectionParams& params);
+
+}  // namespace binpose

@@ -1,0 +1,22 @@
+#pragma once
+// Rigid pose from correspondences (thesis 4.6, eq. 17-28: Horn et al. 1988).
+#include <binpose/types.hpp>
+
+#include <Eigen/Geometry>
+
+namespace binpose {
+
+using Pose = Eigen::Isometry3f;  ///< p_scene = R p_model + t, mm
+
+struct PoseFit {
+  Pose pose = Pose::Identity();
+  float rms = 0;    ///< root-mean-square residual of the fit, mm
+  bool ok = false;  ///< false: fewer than 3 pairs, a degenerate (collinear) set, or a mirror image
+};
+
+/// Least-squares rotation and translation taking `model` points onto `scene` points (same
+/// order). Always a proper rotation; a set whose best orthogonal fit is a reflection (a
+/// mirrored copy) is refused (ok = false) rather than forced into a wrong rotation.
+PoseFit solvePose(const Points& model, const Points& scene);
+
+}  // namespace binpose

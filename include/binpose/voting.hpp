@@ -1,0 +1,47 @@
+#pragma once
+// Voting for scene points' model points (thesis 4.3-4.4).
+#include <binpose/model_database.hpp>
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+namespace binpose {
+
+/// A candidate correspondence pair CP = {s, m}: a scene point index and a model point index.
+struct Correspondence {
+  std::uint32_t scene;
+  std::uint32_t model;
+  friend bool operator==(const Correspondence&, const Correspondence&) = default;
+};
+
+/// Lower and upper fourths of a data set (Johnson 1997): the medians of its smaller and larger
+/// halves, the median counted in both halves when the count is odd. spread() is xi_s (eq. 10).
+struct Fourths {
+  double lower = 0, upper = 0;
+  [[nodiscard]] double spread() const { return upper - lower; }
+};
+/// Fourths of the values v with histogram[v] occurrences each (at least one value).
+Fourths fourthsOfHistogram(std::span<const std::uint32_t> histogram);
+
+/// Selection of eq. 11-12 on accumulator values: the indices whose value is an upper outlier
+/// (> x_u + 3 xi_s) and equals the largest value; empty when there is no outlier.
+std::vector<std::size_t> selectCandidates(std::span<const std::uint32_t> values);
+
+/// Votes for the model points of every point of a sub-group (eq. 8-12). Holds the accumulator
+/// between calls so nothing is allocated per scene point; one Voter per thread.
+class Voter {
+ public:
+  explicit Voter(const ModelDatabase& db);
+  /// Appends to `out` the candidate pairs of each point of `group` (indices into points/normals).
+  void vote(const Points& points, const Points& normals, std::span<const std::uint32_t> group,
+            std::vector<Correspondence>& out);
+
+ private:
+  const ModelDatabase& db_;
+  std::vector<std::uint16_t> votes_;      ///< A_k, one counter per model point
+  std::vector<std::uint32_t> touched_;    ///< model points with a vote, for cheap clearing
+  std::vector<std::uint32_t> histogram_;  ///< accumulator values -> count
+};
+
+}  // namespace binpose

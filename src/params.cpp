@@ -1,0 +1,131 @@
+// Detection parameters: presets, scaling to the model, validation, JSON.
+#include <binpose/params.hpp>
+
+#include <binpose/model.hpp>
+
+#include <cmath>
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+namespace binpose {
+namespace {
+
+using nlohmann::json;
+
+template <typename T>
+void field(json& j, const char* key, T& value, bool write) {
+  if (write) j[key] = value;
+  else if (j.contains(key)) value = j.at(key).get<T>();
+}
+
+/// One list of every field, for reading and writing alike.
+void visit(json& j, DetectionParams& p, bool write) {
+  field(j, "r", p.r, write);
+  field(j, "rho_sub", p.rho_sub, write);
+  field(j, "eta", p.eta, write);
+  field(j, "e_gmax", p.e_gmax, write);
+  field(j, "C_n", p.C_n, write);
+  field(j, "sigma_dist", p.sigma_dist, write);
+  field(j, "k_normals", p.k_normals, write);
+  field(j, "refine", p.refine, write);
+  field(j, "icp_iterations", p.icp_iterations, write);
+  field(j, "icp_max_distance", p.icp_max_distance, write);
+  field(j, "verify", p.verify, write);
+  field(j, "verify_tolerance", p.verify_tolerance, write);
+  field(j, "min_score", p.min_score, write);
+  field(j, "max_instances", p.max_instances, write);
+  field(j, "clique_work_limit", p.clique_work_limit, write);
+  field(j, "seed", p.seed, write);
+  if (write) {
+    j["subsampling"] = p.subsampling == Subsampling::Random ? "random" : "voxel";
+    j["viewpoint"] = {p.viewpoint.x(), p.viewpoint.y(), p.viewpoint.z()};
+    return;
+  }
+  if (j.contains("subsampling")) {
+    const std::string s = j.at("subsampling").get<std::string>();
+    if (s != "random" && s != "voxel") throw Error(fmt::format("subsampling must be 'random' or 'voxel', got '{}'", s));
+    p.subsampling = s == "random" ? Subsampling::Random : Subsampling::Voxel;
+  }
+  if (j.contains("viewpoint")) {
+    const auto v = j.at("viewpoint").get<std::vector<float>>();
+    if (v.size() != 3) throw Error("viewpoint must hold 3 numbers");
+    p.viewpoint = Vec3(v[0], v[1], v[2]);
+  }
+}
+
+void positive(float v, const char* name, const char* unit) {
+  if (!(v > 0) || !std::isfinite(v)) throw Error(fmt::format("{} must be a positive {}, got {}", name, unit, v));
+}
+
+}  // namespace
+
+DetectionParams thesisPreset() {
+  DetectionParams p;
+  p.subsampling = Subsampling::Random;
+  p.refine = false;
+  p.verify = false;
+  return p;
+}
+
+DetectionParams defaultPreset() { return DetectionParams{}; }
+
+DetectionParams presetByName(const std::string& name) {
+  if (name == "thesis") return thesisPreset();
+  if (name == "default") return defaultPreset();
+  throw Error(fmt::format("unknown preset '{}' (known: default, thesis)", name));
+}
+
+DetectionParams scaledToModel(const DetectionParams& params, float model_diameter) {
+  const float s = thesisScale(model_diameter);
+  DetectionParams p = params;
+  p.r *= s;
+  p.eta *= s;
+  p.e_gmax *= s;
+  p.sigma_dist *= s;
+  p.icp_max_distance *= s;
+  p.verify_tolerance *= s;
+  p.rho_sub /= s * s;
+  return p;
+}
+
+void validate(const DetectionParams& p) {
+  positive(p.r, "r (sampling radius)", "length in mm");
+  positive(p.rho_sub, "rho_sub", "density in points/mm^2");
+  positive(p.eta, "eta (grid spacing)", "length in mm");
+  positive(p.e_gmax, "e_gmax", "length in mm");
+  positive(p.sigma_dist, "sigma_dist", "length in mm");
+  positive(p.icp_max_distance, "icp_max_distance", "length in mm");
+  positive(p.verify_tolerance, "verify_tolerance", "length in mm");
+  if (p.C_n < 3) throw Error(fmt::format("C_n must be >= 3 (a pose needs 3 correspondences), got {}", p.C_n));
+  if (p.k_normals < 3 || p.k_normals > 200) throw Error(fmt::format("k_normals must lie in [3, 200], got {}", p.k_normals));
+  if (p.icp_iterations < 0 || p.icp_iterations > 1000) throw Error(fmt::format("icp_iterations must lie in [0, 1000], got {}", p.icp_iterations));
+  if (!(p.min_score >= 0 && p.min_score <= 1)) throw Error(fmt::format("min_score must lie in [0, 1], got {}", p.min_score));
+  if (p.max_instances < 0) throw Error(fmt::format("max_instances must be >= 0, got {}", p.max_instances));
+  if (p.clique_work_limit < 1) throw Error("clique_work_limit must be >= 1");
+  if (!p.viewpoint.allFinite()) throw Error("viewpoint must be finite");
+  if (p.eta < 0.01f * p.r) throw Error(fmt::format("eta {} mm is absurdly small for r {} mm", p.eta, p.r));
+}
+
+void applyJson(DetectionParams& params, const std::string& json_text, const std::string& source) {
+  json j = json::parse(json_text, nullptr, false);
+  if (j.is_discarded() || !j.is_object()) throw Error(fmt::format("{}: not a JSON object", source));
+  json known;
+  DetectionParams probe;
+  visit(known, probe, true);
+  for (const auto& [key, value] : j.items())
+    if (!known.contains(key)) throw Error(fmt::format("{}: unknown parameter '{}'", source, key));
+  try {
+    visit(j, params, false);
+  } catch (const json::exception& e) {
+    throw Error(fmt::format("{}: wrong type ({})", source, e.what()));
+  }
+}
+
+std::string toJson(const DetectionParams& params) {
+  json j;
+  DetectionParams copy = params;
+  visit(j, copy, true);
+  return j.dump();
+}
+
+}  // namespace binpose

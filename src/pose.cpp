@@ -1,0 +1,36 @@
+// Closed-form rigid pose (thesis 4.6).
+#include <binpose/pose.hpp>
+
+#include <Eigen/SVD>
+#include <Eigen/Geometry>
+
+namespace binpose {
+
+PoseFit solvePose(const Points& model, const Points& scene) {
+  PoseFit fit;
+  const auto n = static_cast<Eigen::Index>(model.size());
+  if (n < 3 || model.size() != scene.size()) return fit;
+  Eigen::Matrix3Xd M(3, n), S(3, n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    M.col(i) = model[static_cast<std::size_t>(i)].cast<double>();
+    S.col(i) = scene[static_cast<std::size_t>(i)].cast<double>();
+  }
+  // Cross-covariance of the centred sets (eq. 19-26); its SVD gives R = U diag(1, 1, d) V^T.
+  const Eigen::Vector3d cm = M.rowwise().mean(), cs = S.rowwise().mean();
+  const Eigen::Matrix3d D = (S.colwise() - cs) * (M.colwise() - cm).transpose();
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(D, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const Eigen::Vector3d sv = svd.singularValues();
+  if (!(sv[1] > 1e-9 * sv[0])) return fit;  // collinear: rotation about the line is undetermined
+  const double d = (svd.matrixU() * svd.matrixV().transpose()).determinant();
+  if (d < 0 && sv[2] > 1e-3 * sv[0]) return fit;  // a genuine mirror image, not planar noise
+  Eigen::Matrix3d R = svd.matrixU() * Eigen::Vector3d(1, 1, d < 0 ? -1 : 1).asDiagonal() * svd.matrixV().transpose();
+  fit.pose.linear() = R.cast<float>();
+  fit.pose.translation() = (cs - R * cm).cast<float>();
+  double sum = 0;
+  for (Eigen::Index i = 0; i < n; ++i) sum += (R * (M.col(i) - cm) + cs - S.col(i)).squaredNorm();
+  fit.rms = static_cast<float>(std::sqrt(sum / static_cast<double>(n)));
+  fit.ok = true;
+  return fit;
+}
+
+}  // namespace binpose

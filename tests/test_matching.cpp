@@ -1,0 +1,189 @@
+// Fourth-spread selection (4.4), maximum clique (4.5) and pose (4.6) against known answers.
+#include <binpose/clique.hpp>
+#include <binpose/geometry.hpp>
+#include <binpose/pose.hpp>
+#include <binpose/voting.hpp>
+
+#include "test_util.hpp"
+
+#include <Eigen/Geometry>
+
+#include <numeric>
+
+using namespace binpose;
+
+// ---- fourth spread ----------------------------------------------------------------------------
+
+namespace {
+Fourths fourthsOf(std::vector<std::uint32_t> values) {
+  std::vector<std::uint32_t> h(*std::max_element(values.begin(), values.end()) + 1, 0);
+  for (auto v : values) ++h[v];
+  return fourthsOfHistogram(h);
+}
+}  // namespace
+
+TEST(FourthSpread, TextbookValues) {
+  // Even n = 8: halves {1,2,3,4} and {5,6,7,8} -> x_l = 2.5, x_u = 6.5.
+  Fourths f = fourthsOf({8, 1, 7, 2, 6, 3, 5, 4});
+  EXPECT_DOUBLE_EQ(f.lower, 2.5);
+  EXPECT_DOUBLE_EQ(f.upper, 6.5);
+  EXPECT_DOUBLE_EQ(f.spread(), 4.0);
+  // Odd n = 7: the median 4 in both halves: {1,2,3,4} and {4,5,6,7} -> 2.5 and 5.5.
+  f = fourthsOf({1, 2, 3, 4, 5, 6, 7});
+  EXPECT_DOUBLE_EQ(f.lower, 2.5);
+  EXPECT_DOUBLE_EQ(f.upper, 5.5);
+  // n = 5: {1,2,3} and {3,4,9} -> 2 and 4.
+  f = fourthsOf({9, 1, 3, 2, 4});
+  EXPECT_DOUBLE_EQ(f.lower, 2.0);
+  EXPECT_DOUBLE_EQ(f.upper, 4.0);
+  EXPECT_THROW(fourthsOfHistogram(std::vector<std::uint32_t>{0, 0}), Error);
+}
+
+TEST(FourthSpread, SelectsOnlyExtremeMaxima) {
+  // Bulk 1..4 (x_l = 1.5, x_u = 3.5 with 12 values), spread 2 -> threshold 3.5 + 6 = 9.5.
+  std::vector<std::uint32_t> acc{1, 2, 3, 4, 1, 2, 3, 4, 1, 2, 3, 4};
+  EXPECT_TRUE(selectCandidates(acc).empty()) << "no outlier, no candidate";
+  acc.push_back(9);  // 9 < 9.5: still not an extreme outlier
+  EXPECT_TRUE(selectCandidates(acc).empty());
+  acc.back() = 12;  // one clear outlier
+  EXPECT_EQ(selectCandidates(acc), std::vector<std::size_t>{12});
+  acc.push_back(11);  // two outliers: only the maximum is kept (eq. 12)
+  EXPECT_EQ(selectCandidates(acc), std::vector<std::size_t>{12});
+  acc.push_back(12);  // tied maxima are all kept
+  EXPECT_EQ(selectCandidates(acc), (std::vector<std::size_t>{12, 14}));
+  EXPECT_TRUE(selectCandidates(std::vector<std::uint32_t>{5, 5, 5, 5}).empty()) << "flat: indiscriminant";
+  EXPECT_TRUE(selectCandidates(std::vector<std::uint32_t>{}).empty());
+}
+
+// ---- maximum clique ---------------------------------------------------------------------------
+
+namespace {
+/// Reference: plain Bron-Kerbosch (no pivot, no bounds) enumerates every maximal clique.
+void bronKerbosch(const Graph& g, std::vector<int> R, std::vector<int> P, std::vector<int> X, int& best) {
+  if (P.empty() && X.empty()) best = std::max(best, static_cast<int>(R.size()));
+  while (!P.empty()) {
+    const int v = P.back();
+    std::vector<int> P2, X2;
+    for (int u : P) if (g.adjacent(u, v)) P2.push_back(u);
+    for (int u : X) if (g.adjacent(u, v)) X2.push_back(u);
+    R.push_back(v);
+    bronKerbosch(g, R, P2, X2, best);
+    R.pop_back();
+    P.pop_back();
+    X.push_back(v);
+  }
+}
+
+int bruteForceClique(const Graph& g) {
+  std::vector<int> all(static_cast<std::size_t>(g.size()));
+  std::iota(all.begin(), all.end(), 0);
+  int best = 0;
+  bronKerbosch(g, {}, all, {}, best);
+  return best;
+}
+}  // namespace
+
+TEST(Clique, MatchesBruteForceOnRandomGraphs) {
+  Rng rng(5);
+  for (int trial = 0; trial < 200; ++trial) {
+    const int n = 4 + static_cast<int>(rng.below(27));  // 4 to 30 vertices
+    const double density = 0.2 + 0.7 * rng.uniform();
+    Graph g(n);
+    for (int a = 0; a < n; ++a)
+      for (int b = a + 1; b < n; ++b)
+        if (rng.uniform() < density) g.addEdge(a, b);
+    const CliqueResult r = maximumClique(g, 10000000);
+    ASSERT_TRUE(r.exact);
+    EXPECT_EQ(static_cast<int>(r.vertices.size()), bruteForceClique(g)) << "trial " << trial;
+    for (std::size_t i = 0; i < r.vertices.size(); ++i)
+      for (std::size_t j = i + 1; j < r.vertices.size(); ++j) ASSERT_TRUE(g.adjacent(r.vertices[i], r.vertices[j]));
+  }
+}
+
+TEST(Clique, ThirtyVerticesAndAPlantedClique) {
+  Rng rng(6);
+  for (int trial = 0; trial < 8; ++trial) {
+    const int n = 30;
+    Graph g(n);
+    for (int a = 0; a < n; ++a)
+      for (int b = a + 1; b < n; ++b)
+        if (rng.uniform() < 0.5) g.addEdge(a, b);
+    // Plant a 12-clique, far above what a G(30, 0.5) graph holds (about 7): found exactly.
+    std::vector<int> planted;
+    for (int v = 0; v < n; ++v)
+      if (rng.uniform() < 0.4 && planted.size() < 12) planted.push_back(v);
+    for (int v = 0; v < n && planted.size() < 12; ++v)
+      if (std::find(planted.begin(), planted.end(), v) == planted.end()) planted.push_back(v);
+    std::sort(planted.begin(), planted.end());
+    for (std::size_t i = 0; i < planted.size(); ++i)
+      for (std::size_t j = i + 1; j < planted.size(); ++j) g.addEdge(planted[i], planted[j]);
+    const CliqueResult r = maximumClique(g);
+    EXPECT_TRUE(r.exact);
+    EXPECT_EQ(r.vertices, planted);
+  }
+}
+
+TEST(Clique, WorkBoundStopsEarly) {
+  Rng rng(8);
+  const int n = 200;
+  Graph g(n);
+  for (int a = 0; a < n; ++a)
+    for (int b = a + 1; b < n; ++b)
+      if (rng.uniform() < 0.9) g.addEdge(a, b);
+  const CliqueResult r = maximumClique(g, 50);
+  EXPECT_FALSE(r.exact);
+  EXPECT_LE(r.nodes, 51u);
+  for (std::size_t i = 0; i < r.vertices.size(); ++i)
+    for (std::size_t j = i + 1; j < r.vertices.size(); ++j) ASSERT_TRUE(g.adjacent(r.vertices[i], r.vertices[j]));
+  EXPECT_TRUE(maximumClique(Graph(0)).vertices.empty());
+}
+
+// ---- pose -------------------------------------------------------------------------------------
+
+TEST(Pose, RecoversRandomRigidTransformsUnderNoise) {
+  Rng rng(9);
+  auto gauss = [&] {  // Box-Muller
+    return float(std::sqrt(-2 * std::log(1 - rng.uniform())) * std::cos(2 * M_PI * rng.uniform()));
+  };
+  for (int trial = 0; trial < 50; ++trial) {
+    const Eigen::Quaternionf q = Eigen::Quaternionf(gauss(), gauss(), gauss(), gauss()).normalized();
+    Pose truth = Pose::Identity();
+    truth.linear() = q.toRotationMatrix();
+    truth.translation() = Vec3(gauss(), gauss(), gauss()) * 200;
+    Points model, scene;
+    for (int i = 0; i < 40; ++i) {
+      model.push_back(Vec3(gauss(), gauss(), gauss()) * 20);
+      scene.push_back(truth * model.back() + Vec3(gauss(), gauss(), gauss()) * 0.1f);
+    }
+    const PoseFit fit = solvePose(model, scene);
+    ASSERT_TRUE(fit.ok);
+    const float angle = Eigen::AngleAxisf(fit.pose.linear().transpose() * truth.linear()).angle();
+    EXPECT_LT(test::deg(angle), 0.5);
+    EXPECT_LT((fit.pose.translation() - truth.translation()).norm(), 0.5f);
+    EXPECT_NEAR(fit.rms, 0.1 * std::sqrt(3.0), 0.06);
+    EXPECT_NEAR(fit.pose.linear().determinant(), 1.0f, 1e-4f);
+  }
+}
+
+TEST(Pose, RefusesMirrorImageAndDegenerateSets) {
+  Rng rng(10);
+  Points model, mirrored;
+  for (int i = 0; i < 30; ++i) {
+    model.emplace_back(float(rng.uniform() * 40), float(rng.uniform() * 30), float(rng.uniform() * 20));
+    mirrored.emplace_back(-model.back().x(), model.back().y(), model.back().z() + 100);
+  }
+  EXPECT_FALSE(solvePose(model, mirrored).ok) << "a reflection is never returned as a pose";
+  EXPECT_FALSE(solvePose({model[0], model[1]}, {model[0], model[1]}).ok);
+  const Points line{{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {3, 0, 0}};
+  EXPECT_FALSE(solvePose(line, line).ok);
+  // A planar set is fine: its mirror ambiguity is resolved to the proper rotation.
+  Points plane, plane_scene;
+  for (int i = 0; i < 20; ++i) {
+    plane.emplace_back(float(rng.uniform() * 40), float(rng.uniform() * 40), 0.0f);
+    plane_scene.push_back(plane.back() + Vec3(5, 6, 7));
+  }
+  const PoseFit fit = solvePose(plane, plane_scene);
+  ASSERT_TRUE(fit.ok);
+  EXPECT_LT(fit.rms, 1e-3f);
+  EXPECT_TRUE(fit.pose.linear().isIdentity(1e-4f));
+}
