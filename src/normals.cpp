@@ -1,7 +1,7 @@
 // Plane-fit normals (thesis 5.2.2).
 #include <binpose/normals.hpp>
 
-#include "kdtree.hpp"
+#include <binpose/kdtree.hpp>
 
 #include <Eigen/Eigenvalues>
 #include <fmt/format.h>
@@ -30,10 +30,14 @@ bool fitPlaneNormal(const Points& points, Vec3& normal) {
 }
 
 Points estimateNormals(const Points& cloud, const Points& queries, int k, const Vec3& viewpoint) {
+  if (cloud.size() < 3) return Points(queries.size(), Vec3::Zero());
+  return estimateNormals(KdTree(cloud), cloud, queries, k, viewpoint);
+}
+
+Points estimateNormals(const KdTree& tree, const Points& cloud, const Points& queries, int k, const Vec3& viewpoint) {
   if (k < 3) throw Error(fmt::format("normal estimation needs k >= 3 neighbours, got {}", k));
   Points normals(queries.size(), Vec3::Zero());
   if (cloud.size() < 3) return normals;
-  const detail::KdTree tree(cloud);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, queries.size(), 256), [&](const auto& range) {
     std::vector<std::uint32_t> idx(static_cast<std::size_t>(k));
     std::vector<float> dist(static_cast<std::size_t>(k));

@@ -3,7 +3,7 @@
 
 #include <binpose/geometry.hpp>
 
-#include "kdtree.hpp"
+#include <binpose/kdtree.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -26,7 +26,7 @@ std::vector<std::uint32_t> shuffledOrder(std::size_t n, std::uint64_t seed) {
   return order;
 }
 
-std::vector<std::uint32_t> select(const Points& candidates, const detail::KdTree& tree,
+std::vector<std::uint32_t> select(const Points& candidates, const KdTree& tree,
                                   const std::vector<std::uint32_t>& order, float radius) {
   std::vector<char> blocked(candidates.size(), 0);
   std::vector<std::uint32_t> kept;
@@ -72,7 +72,7 @@ std::vector<SurfacePoint> sampleSurfaceUniform(const Mesh& mesh, std::size_t cou
 
 std::vector<std::uint32_t> poissonDiskSelect(const Points& candidates, float radius, std::uint64_t seed) {
   if (!(radius >= 0)) throw Error(fmt::format("Poisson-disk radius must be >= 0, got {}", radius));
-  const detail::KdTree tree(candidates);
+  const KdTree tree(candidates);
   return select(candidates, tree, shuffledOrder(candidates.size(), seed), radius);
 }
 
@@ -85,7 +85,7 @@ std::vector<std::uint32_t> poissonDiskSelectCount(const Points& candidates, std:
     if (radius_out) *radius_out = 0;
     return all;
   }
-  const detail::KdTree tree(candidates);
+  const KdTree tree(candidates);
   const auto order = shuffledOrder(candidates.size(), seed);
   Vec3 lo, hi;
   bounds(candidates, lo, hi);

@@ -1,12 +1,12 @@
 #pragma once
-// nanoflann kd-tree over a binpose::Points array (internal).
+// nanoflann kd-tree over a binpose::Points array.
 #include <binpose/types.hpp>
 
 #include <nanoflann.hpp>
 
 #include <memory>
 
-namespace binpose::detail {
+namespace binpose {
 
 struct PointsAdaptor {
   const Points& pts;
@@ -29,6 +29,8 @@ class KdTree {
   std::size_t knn(const Vec3& q, std::size_t k, std::uint32_t* indices, float* sq_dists) const {
     return index_->knnSearch(q.data(), k, indices, sq_dists);
   }
+  /// Nearest point of q: its index and squared distance; false for an empty tree.
+  bool nearest(const Vec3& q, std::uint32_t& index, float& sq_dist) const { return knn(q, 1, &index, &sq_dist) == 1; }
   /// All points within `radius` of q (unsorted).
   void radius(const Vec3& q, float radius, std::vector<std::pair<std::uint32_t, float>>& out) const {
     nanoflann::SearchParams params;
@@ -41,4 +43,4 @@ class KdTree {
   std::unique_ptr<Index> index_;
 };
 
-}  // namespace binpose::detail
+}  // namespace binpose

@@ -1,0 +1,57 @@
+#pragma once
+// Online recognition (thesis chapters 4-5): scan -> preprocess -> sub-groups -> votes ->
+// correspondences -> clique -> pose -> detections, removing each found object's points.
+#include <binpose/kdtree.hpp>
+#include <binpose/model_database.hpp>
+#include <binpose/params.hpp>
+#include <binpose/pose.hpp>
+
+#include <vector>
+
+namespace binpose {
+
+struct Detection {
+  Pose pose;               ///< model -> scan frame: p_scan = R p_model + t, mm
+  float score = 0;         ///< share of the posed model's sensor-facing points the scan supports
+  int correspondences = 0; ///< size of the accepted clique |C|
+  float rms = 0;           ///< residual of the clique's closed-form fit, mm
+};
+
+struct DetectionTiming {
+  double preprocess_ms = 0, match_ms = 0, refine_ms = 0, total_ms = 0;
+};
+
+struct DetectionResult {
+  std::vector<Detection> detections;  ///< best first (by score when verifying, else in order found)
+  DetectionTiming timing;
+  std::size_t scene_points = 0;    ///< points of the scan
+  std::size_t sampled_points = 0;  ///< oriented points after sub-sampling
+  std::size_t subgroups = 0;       ///< sub-groups created
+  std::size_t subgroups_run = 0;   ///< sub-groups that went through voting
+};
+
+class Detector {
+ public:
+  /// `params` in absolute units (see scaledToModel); validated here.
+  Detector(const ModelDatabase& db, const DetectionParams& params);
+
+  /// Every instance of the model in the scan. An empty scan gives no detection.
+  [[nodiscard]] DetectionResult detect(const PointCloud& scan) const;
+
+  [[nodiscard]] const DetectionParams& params() const { return params_; }
+
+ private:
+  /// Share of the model's points that, posed by `a`, lie within sigma_dist of the model posed by `b`.
+  [[nodiscard]] float overlap(const Pose& a, const Pose& b) const;
+  /// Keeps each detection (best first) unless its model mostly overlaps a better one's: two
+  /// poses of one object (a near-symmetric flip found first, say) are reported once.
+  [[nodiscard]] std::vector<Detection> suppressOverlaps(const std::vector<Detection>& ranked) const;
+
+  const ModelDatabase& db_;
+  DetectionParams params_;
+  KdTree model_tree_;
+  Vec3 model_centroid_;
+  float model_radius_ = 0;  ///< largest distance of a model point from the centroid
+};
+
+}  // namespace binpose

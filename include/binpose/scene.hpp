@@ -1,0 +1,33 @@
+#pragma once
+// Scene preparation (thesis 5.2.1-5.2.2): sub-sampling and normals.
+#include <binpose/kdtree.hpp>
+#include <binpose/params.hpp>
+
+#include <cstdint>
+#include <vector>
+
+namespace binpose {
+
+/// The oriented scene points S the matching works on.
+struct PreparedScene {
+  Points points;                   ///< sub-sampled scan points, mm
+  Points normals;                  ///< unit normals facing the sensor
+  std::vector<std::uint32_t> scan_index;  ///< each point's index in the full scan
+};
+
+/// Indices of one scan point per occupied cube of side `voxel` (the point nearest its cube's
+/// centroid), ascending. Deterministic.
+std::vector<std::uint32_t> voxelSubsample(const Points& points, float voxel);
+
+/// Sub-samples the scan to rho_sub (5.2.1): by voxels of side 1/sqrt(rho_sub), or the thesis's
+/// random selection of as many points (seeded). Normals by plane fits over k_normals neighbours
+/// in the full scan (5.2.2) through `scan_tree`, facing the viewpoint; points whose
+/// neighbourhood is degenerate are dropped.
+PreparedScene prepareScene(const Points& scan, const KdTree& scan_tree, const DetectionParams& params);
+
+/// Redundant sub-groups (5.2.3-5.2.4): a grid of spacing eta over the x-y bounds of the points,
+/// and at each node the points within r of it in x-y. Groups smaller than `min_size` are left
+/// out; the rest come in the thesis's order, closest to the mean size first (ties by position).
+std::vector<std::vector<std::uint32_t>> makeSubGroups(const Points& points, float eta, float r, std::size_t min_size);
+
+}  // namespace binpose

@@ -1,0 +1,144 @@
+// The redundant sub-group pipeline (thesis chapter 5) with binpose's refinements.
+#include <binpose/detector.hpp>
+
+#include <binpose/clique.hpp>
+#include <binpose/refine.hpp>
+#include <binpose/scene.hpp>
+#include <binpose/voting.hpp>
+
+#include <algorithm>
+#include <chrono>
+
+namespace binpose {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+
+/// Geometric consistency graph (eq. 13-16): CP_i and CP_j are linked when the model and scene
+/// distances between them differ by less than e_gmax.
+Graph consistencyGraph(const std::vector<Correspondence>& cps, const Points& scene, const Points& model, float e_gmax) {
+  Graph g(static_cast<int>(cps.size()));
+  for (std::size_t i = 0; i < cps.size(); ++i)
+    for (std::size_t j = i + 1; j < cps.size(); ++j) {
+      const float dm = (model[cps[i].model] - model[cps[j].model]).norm();
+      const float ds = (scene[cps[i].scene] - scene[cps[j].scene]).norm();
+      if (std::abs(dm - ds) < e_gmax) g.addEdge(static_cast<int>(i), static_cast<int>(j));
+    }
+  return g;
+}
+
+}  // namespace
+
+Detector::Detector(const ModelDatabase& db, const DetectionParams& params)
+    : db_(db), params_(params), model_tree_(db.model().points) {
+  validate(params_);
+  const Points& m = db.model().points;
+  model_centroid_ = Vec3::Zero();
+  for (const Vec3& p : m) model_centroid_ += p;
+  model_centroid_ /= static_cast<float>(m.size());
+  for (const Vec3& p : m) model_radius_ = std::max(model_radius_, (p - model_centroid_).norm());
+}
+
+float Detector::overlap(const Pose& a, const Pose& b) const {
+  if ((a * model_centroid_ - b * model_centroid_).norm() > 2 * model_radius_) return 0.0f;
+  const Points& model = db_.model().points;
+  const Pose b_from_a = b.inverse() * a;
+  const float limit = params_.sigma_dist * params_.sigma_dist;
+  int near = 0;
+  for (const Vec3& m : model) {
+    std::uint32_t j;
+    float d2;
+    if (model_tree_.nearest(b_from_a * m, j, d2) && d2 <= limit) ++near;
+  }
+  return static_cast<float>(near) / static_cast<float>(model.size());
+}
+
+std::vector<Detection> Detector::suppressOverlaps(const std::vector<Detection>& ranked) const {
+  std::vector<Detection> kept;
+  for (const Detection& d : ranked) {
+    const bool duplicate = std::any_of(kept.begin(), kept.end(), [&](const Detection& k) { return overlap(d.pose, k.pose) > 0.5f; });
+    if (!duplicate) kept.push_back(d);
+  }
+  return kept;
+}
+
+DetectionResult Detector::detect(const PointCloud& scan) const {
+  const auto t0 = Clock::now();
+  DetectionResult result;
+  result.scene_points = scan.size();
+  if (scan.empty()) return result;
+  const DetectionParams& p = params_;
+  const Points& model = db_.model().points;
+  const Points& model_normals = db_.model().normals;
+
+  const KdTree scan_tree(scan.points);
+  const PreparedScene scene = prepareScene(scan.points, scan_tree, p);
+  const auto groups = makeSubGroups(scene.points, p.eta, p.r, static_cast<std::size_t>(p.C_n));
+  result.sampled_points = scene.points.size();
+  result.subgroups = groups.size();
+  result.timing.preprocess_ms = msSince(t0);
+
+  std::vector<char> removed(scene.points.size(), 0);
+  Voter voter(db_);
+  std::vector<std::uint32_t> members;
+  std::vector<Correspondence> candidates;
+  Points clique_model, clique_scene;
+  double refine_ms = 0;
+  const auto t_match = Clock::now();
+  for (const auto& group : groups) {
+    if (p.max_instances > 0 && static_cast<int>(result.detections.size()) >= p.max_instances) break;
+    members.clear();
+    for (const auto i : group)
+      if (!removed[i]) members.push_back(i);
+    if (members.size() < static_cast<std::size_t>(p.C_n)) continue;
+    ++result.subgroups_run;
+    candidates.clear();
+    voter.vote(scene.points, scene.normals, members, candidates);  // 4.3-4.4
+    if (candidates.size() < static_cast<std::size_t>(p.C_n)) continue;
+    const CliqueResult clique =
+        maximumClique(consistencyGraph(candidates, scene.points, model, p.e_gmax), p.clique_work_limit);  // 4.5
+    if (clique.vertices.size() < static_cast<std::size_t>(p.C_n)) continue;
+    clique_model.clear();
+    clique_scene.clear();
+    for (const int v : clique.vertices) {
+      clique_model.push_back(model[candidates[v].model]);
+      clique_scene.push_back(scene.points[candidates[v].scene]);
+    }
+    const PoseFit fit = solvePose(clique_model, clique_scene);  // 4.6
+    if (!fit.ok) continue;
+    Detection det{fit.pose, 0.0f, static_cast<int>(clique.vertices.size()), fit.rms};
+
+    const auto t_refine = Clock::now();
+    if (p.refine) {
+      const IcpParams icp{p.icp_iterations, p.icp_max_distance, p.verify_tolerance, p.viewpoint};
+      det.pose = refinePose(det.pose, model, model_normals, scan.points, scan_tree, icp);
+    }
+    det.score = supportScore(det.pose, model, model_normals, scan_tree, p.verify_tolerance, p.viewpoint);
+    refine_ms += msSince(t_refine);
+    if (p.verify && det.score < p.min_score) continue;
+
+    // 5.2.6, eq. 39: remove the scene points within sigma_dist of the posed model.
+    const Pose inverse = det.pose.inverse();
+    const Vec3 centre = det.pose * model_centroid_;
+    const float reach = model_radius_ + p.sigma_dist;
+    for (std::size_t i = 0; i < scene.points.size(); ++i) {
+      if (removed[i] || (scene.points[i] - centre).squaredNorm() > reach * reach) continue;
+      std::uint32_t j;
+      float d2;
+      if (model_tree_.nearest(inverse * scene.points[i], j, d2) && d2 <= p.sigma_dist * p.sigma_dist) removed[i] = 1;
+    }
+    result.detections.push_back(det);
+  }
+  result.timing.refine_ms = refine_ms;
+  result.timing.match_ms = msSince(t_match) - refine_ms;
+  if (p.verify) {
+    std::stable_sort(result.detections.begin(), result.detections.end(),
+                     [](const Detection& a, const Detection& b) { return a.score > b.score; });
+    result.detections = suppressOverlaps(result.detections);
+  }
+  result.timing.total_ms = msSince(t0);
+  return result;
+}
+
+}  // namespace binpose

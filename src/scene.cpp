@@ -1,0 +1,116 @@
+// Scene preparation and redundant sub-groups (thesis 5.2.1-5.2.4).
+#include <binpose/scene.hpp>
+
+#include <binpose/geometry.hpp>
+#include <binpose/normals.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <fmt/format.h>
+#include <numeric>
+
+namespace binpose {
+namespace {
+
+std::uint64_t cellKey(const Vec3& p, float size, int dims) {
+  std::uint64_t key = 0;
+  for (int k = 0; k < dims; ++k) {
+    const auto c = static_cast<std::int64_t>(std::floor(p[k] / size)) + (1 << 20);  // 21 bits per axis
+    key = (key << 21) | (static_cast<std::uint64_t>(c) & 0x1FFFFF);
+  }
+  return key;
+}
+
+}  // namespace
+
+std::vector<std::uint32_t> voxelSubsample(const Points& points, float voxel) {
+  if (!(voxel > 0)) throw Error(fmt::format("voxel size must be positive, got {}", voxel));
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> keyed(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) keyed[i] = {cellKey(points[i], voxel, 3), static_cast<std::uint32_t>(i)};
+  std::sort(keyed.begin(), keyed.end());
+  std::vector<std::uint32_t> kept;
+  for (std::size_t a = 0; a < keyed.size();) {
+    std::size_t b = a;
+    Vec3 centroid = Vec3::Zero();
+    for (; b < keyed.size() && keyed[b].first == keyed[a].first; ++b) centroid += points[keyed[b].second];
+    centroid /= static_cast<float>(b - a);
+    std::uint32_t best = keyed[a].second;
+    for (std::size_t i = a; i < b; ++i)
+      if ((points[keyed[i].second] - centroid).squaredNorm() < (points[best] - centroid).squaredNorm()) best = keyed[i].second;
+    kept.push_back(best);
+    a = b;
+  }
+  std::sort(kept.begin(), kept.end());
+  return kept;
+}
+
+PreparedScene prepareScene(const Points& scan, const KdTree& scan_tree, const DetectionParams& params) {
+  PreparedScene scene;
+  if (scan.empty()) return scene;
+  const float spacing = 1.0f / std::sqrt(params.rho_sub);
+  std::vector<std::uint32_t> chosen = voxelSubsample(scan, spacing);
+  if (params.subsampling == Subsampling::Random) {  // as many points, drawn at random (5.2.1)
+    const std::size_t count = chosen.size();
+    chosen.resize(scan.size());
+    std::iota(chosen.begin(), chosen.end(), 0u);
+    Rng rng(params.seed);
+    for (std::size_t i = 0; i < count; ++i) std::swap(chosen[i], chosen[i + rng.below(scan.size() - i)]);
+    chosen.resize(count);
+    std::sort(chosen.begin(), chosen.end());
+  }
+  Points sampled;
+  for (const auto i : chosen) sampled.push_back(scan[i]);
+  const Points normals = estimateNormals(scan_tree, scan, sampled, params.k_normals, params.viewpoint);
+  for (std::size_t i = 0; i < sampled.size(); ++i) {
+    if (normals[i].squaredNorm() < 0.5f) continue;  // degenerate neighbourhood: skipped
+    scene.points.push_back(sampled[i]);
+    scene.normals.push_back(normals[i]);
+    scene.scan_index.push_back(chosen[i]);
+  }
+  return scene;
+}
+
+std::vector<std::vector<std::uint32_t>> makeSubGroups(const Points& points, float eta, float r, std::size_t min_size) {
+  if (!(eta > 0) || !(r > 0)) throw Error(fmt::format("sub-groups need eta > 0 and r > 0, got {} and {}", eta, r));
+  std::vector<std::vector<std::uint32_t>> groups;
+  Vec3 lo, hi;
+  if (!bounds(points, lo, hi)) return groups;
+  const auto nx = static_cast<long>(std::floor((hi.x() - lo.x()) / eta)) + 1;
+  const auto ny = static_cast<long>(std::floor((hi.y() - lo.y()) / eta)) + 1;
+  if (nx * ny > 4'000'000) throw Error(fmt::format("eta {} mm gives {} sub-groups over the scene; use a larger eta", eta, nx * ny));
+  // Points bucketed by x-y cells of side r: a circle of radius r touches at most 3 x 3 cells.
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> cells(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i)
+    cells[i] = {cellKey(points[i] - lo, r, 2), static_cast<std::uint32_t>(i)};
+  std::sort(cells.begin(), cells.end());
+  for (long gx = 0; gx < nx; ++gx)
+    for (long gy = 0; gy < ny; ++gy) {
+      const Vec3 node = lo + Vec3(float(gx) * eta, float(gy) * eta, 0.0f);
+      std::vector<std::uint32_t> members;
+      for (int dx = -1; dx <= 1; ++dx)
+        for (int dy = -1; dy <= 1; ++dy) {
+          const Vec3 probe = node - lo + Vec3(float(dx) * r, float(dy) * r, 0.0f);
+          if (probe.x() < -r || probe.y() < -r) continue;
+          const std::uint64_t key = cellKey(probe, r, 2);
+          auto it = std::lower_bound(cells.begin(), cells.end(), std::make_pair(key, 0u));
+          for (; it != cells.end() && it->first == key; ++it) {
+            const Vec3& p = points[it->second];
+            if ((p.x() - node.x()) * (p.x() - node.x()) + (p.y() - node.y()) * (p.y() - node.y()) <= r * r)
+              members.push_back(it->second);
+          }
+        }
+      if (members.size() < min_size) continue;
+      std::sort(members.begin(), members.end());
+      groups.push_back(std::move(members));
+    }
+  if (groups.empty()) return groups;
+  double mean = 0;
+  for (const auto& g : groups) mean += static_cast<double>(g.size());
+  mean /= static_cast<double>(groups.size());
+  std::stable_sort(groups.begin(), groups.end(), [&](const auto& a, const auto& b) {
+    return std::abs(static_cast<double>(a.size()) - mean) < std::abs(static_cast<double>(b.size()) - mean);
+  });
+  return groups;
+}
+
+}  // namespace binpose
