@@ -1,4 +1,6 @@
 // binpose command-line front end.
+#include <binpose/detector.hpp>
+#include <binpose/geometry.hpp>
 #include <binpose/io.hpp>
 #include <binpose/model.hpp>
 #include <binpose/model_database.hpp>
@@ -6,10 +8,13 @@
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <nlohmann/json.hpp>
 
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <numbers>
 #include <optional>
 #include <string_view>
@@ -89,6 +94,154 @@ int runTrain(const TrainOptions& o) {
   return 0;
 }
 
+struct DetectOptions {
+  std::string model, scene, intrinsics, image_id, out, preset = "default", params_file;
+  std::string units = "mm", model_units = "mm";
+  std::optional<int> max_instances, C_n, k_normals;
+  std::optional<float> r, rho_sub, eta, e_gmax, sigma_dist, min_score;
+  std::optional<std::string> subsampling;
+  std::optional<bool> refine, verify;
+  std::vector<float> viewpoint;
+  std::optional<std::uint64_t> seed;
+  int model_points = 4000;
+};
+
+void addDetect(CLI::App& app, DetectOptions& o) {
+  CLI::App* d = app.add_subcommand("detect", "Find every instance of a model in a scan (thesis ch. 4-5)");
+  d->add_option("--model", o.model, "Database (.bpdb) or a model to train on the fly (mesh, cloud, builtin:NAME)")->required();
+  d->add_option("--scene", o.scene, "Scan: PLY, PCD, or a 16-bit depth PNG (with --intrinsics)")->required();
+  d->add_option("--intrinsics", o.intrinsics, "BOP camera.json or scene_camera.json for a depth PNG");
+  d->add_option("--image-id", o.image_id, "Entry of scene_camera.json (default: the first)");
+  d->add_option("--out", o.out, "Write the detections as JSON here");
+  d->add_option("--max-instances", o.max_instances, "Stop after N detections (0: no limit)");
+  d->add_option("--preset", o.preset, "Parameter preset: default, or thesis (chapter 5 as written)")
+      ->check(CLI::IsMember({"default", "thesis"}))->capture_default_str();
+  d->add_option("--params", o.params_file, "JSON file of parameters (absolute units, mm), applied after the preset");
+  d->add_option("--units", o.units, "Length unit of the scene file: mm or m")->check(CLI::IsMember({"mm", "m"}))->capture_default_str();
+  d->add_option("--model-units", o.model_units, "Length unit of a model file trained on the fly")
+      ->check(CLI::IsMember({"mm", "m"}))->capture_default_str();
+  d->add_option("--model-points", o.model_points, "Model points when training on the fly")->capture_default_str();
+  d->add_option("--r", o.r, "Sampling radius r, mm (default 25 mm x diameter/60 mm)");
+  d->add_option("--rho-sub", o.rho_sub, "Scene density after sub-sampling, points/mm^2 (default 0.06 x (60 mm/diameter)^2)");
+  d->add_option("--eta", o.eta, "Grid spacing eta, mm (default 15 mm x diameter/60 mm)");
+  d->add_option("--e-gmax", o.e_gmax, "Geometric consistency limit e_gmax, mm (default 1.5 mm x diameter/60 mm)");
+  d->add_option("--c-n", o.C_n, "Smallest accepted clique C_n (default 8)");
+  d->add_option("--sigma-dist", o.sigma_dist, "Removal distance sigma_dist, mm (default 6 mm x diameter/60 mm)");
+  d->add_option("--k-normals", o.k_normals, "Neighbours of a scene normal's plane fit (default 6)");
+  d->add_option("--subsampling", o.subsampling, "random (thesis) or voxel")->check(CLI::IsMember({"random", "voxel"}));
+  d->add_option("--refine", o.refine, "ICP refinement on/off (true|false)");
+  d->add_option("--verify", o.verify, "Verification score and rejection on/off (true|false)");
+  d->add_option("--min-score", o.min_score, "Smallest accepted verification score in [0, 1]");
+  d->add_option("--viewpoint", o.viewpoint, "Sensor origin x y z in the scan frame, mm (default: the file's, else 0 0 0)")->expected(3);
+  d->add_option("--seed", o.seed, "Seed of the random sub-sampling");
+}
+
+/// Preset, scaled to the model, then the JSON file, then the options given on the command line.
+binpose::DetectionParams detectParams(const DetectOptions& o, float diameter, const binpose::PointCloud& scan) {
+  binpose::DetectionParams p = binpose::scaledToModel(binpose::presetByName(o.preset), diameter);
+  p.viewpoint = scan.viewpoint;
+  if (!o.params_file.empty()) {
+    std::ifstream in(o.params_file);
+    if (!in) throw binpose::Error(fmt::format("{}: cannot open parameter file", o.params_file));
+    std::stringstream text;
+    text << in.rdbuf();
+    binpose::applyJson(p, text.str(), o.params_file);
+  }
+  if (o.r) p.r = *o.r;
+  if (o.rho_sub) p.rho_sub = *o.rho_sub;
+  if (o.eta) p.eta = *o.eta;
+  if (o.e_gmax) p.e_gmax = *o.e_gmax;
+  if (o.C_n) p.C_n = *o.C_n;
+  if (o.sigma_dist) p.sigma_dist = *o.sigma_dist;
+  if (o.k_normals) p.k_normals = *o.k_normals;
+  if (o.subsampling) p.subsampling = *o.subsampling == "random" ? binpose::Subsampling::Random : binpose::Subsampling::Voxel;
+  if (o.refine) p.refine = *o.refine;
+  if (o.verify) p.verify = *o.verify;
+  if (o.min_score) p.min_score = *o.min_score;
+  if (o.max_instances) p.max_instances = *o.max_instances;
+  if (o.seed) p.seed = *o.seed;
+  if (o.viewpoint.size() == 3) p.viewpoint = binpose::Vec3(o.viewpoint[0], o.viewpoint[1], o.viewpoint[2]);
+  binpose::validate(p);
+  return p;
+}
+
+binpose::ModelDatabase loadOrTrain(const DetectOptions& o) {
+  if (binpose::ModelDatabase::isDatabaseFile(o.model)) return binpose::ModelDatabase::load(o.model);
+  binpose::ModelParams mp;
+  mp.num_points = o.model_points;
+  const binpose::ModelFile file = loadModel(o.model, binpose::unitScale(binpose::parseUnits(o.model_units)));
+  const binpose::OrientedModel model = file.is_mesh ? binpose::prepareModel(file.mesh, mp) : binpose::prepareModel(file.cloud, mp);
+  return binpose::ModelDatabase::build(model, binpose::defaultQuantization(model.diameter));
+}
+
+binpose::PointCloud loadScene(const DetectOptions& o) {
+  if (o.scene.size() > 4 && o.scene.substr(o.scene.size() - 4) == ".png") {
+    if (o.intrinsics.empty()) throw binpose::Error(fmt::format("{}: a depth image needs --intrinsics", o.scene));
+    return binpose::readDepthPng(o.scene, binpose::readIntrinsics(o.intrinsics, o.image_id));
+  }
+  return binpose::readCloud(o.scene, binpose::unitScale(binpose::parseUnits(o.units)));
+}
+
+void warnAboutUnits(const binpose::PointCloud& scan, float diameter) {
+  binpose::Vec3 lo, hi;
+  if (!binpose::bounds(scan.points, lo, hi)) return;
+  const float extent = (hi - lo).norm();
+  if (extent < 0.5f * diameter)
+    fmt::print(stderr, "warning: the scene spans {:.3g} mm but the model is {:.3g} mm across: is the scene in metres? (use --units m)\n",
+               extent, diameter);
+  else if (extent > 1000.0f * diameter)
+    fmt::print(stderr, "warning: the scene spans {:.3g} mm, over 1000 times the model's {:.3g} mm: is the model in metres? (use --model-units m)\n",
+               extent, diameter);
+}
+
+std::string resultJson(const binpose::DetectionResult& r, const binpose::DetectionParams& p) {
+  nlohmann::json j;
+  j["detections"] = nlohmann::json::array();
+  for (const auto& d : r.detections) {
+    const Eigen::Matrix4f T = d.pose.matrix();
+    nlohmann::json rows = nlohmann::json::array();
+    for (int i = 0; i < 4; ++i) rows.push_back({T(i, 0), T(i, 1), T(i, 2), T(i, 3)});
+    j["detections"].push_back({{"pose", rows}, {"score", d.score}, {"correspondences", d.correspondences}, {"fit_rms_mm", d.rms}});
+  }
+  j["timing_ms"] = {{"preprocess", r.timing.preprocess_ms}, {"match", r.timing.match_ms}, {"refine", r.timing.refine_ms},
+                    {"total", r.timing.total_ms}};
+  j["scene_points"] = r.scene_points;
+  j["sampled_points"] = r.sampled_points;
+  j["subgroups"] = r.subgroups;
+  j["params"] = nlohmann::json::parse(binpose::toJson(p));
+  return j.dump(2);
+}
+
+int runDetect(const DetectOptions& o) {
+  const binpose::ModelDatabase db = loadOrTrain(o);
+  const binpose::PointCloud scan = loadScene(o);
+  const float diameter = db.model().diameter;
+  warnAboutUnits(scan, diameter);
+  const binpose::DetectionParams params = detectParams(o, diameter, scan);
+  const binpose::Detector detector(db, params);
+  const binpose::DetectionResult r = detector.detect(scan);
+
+  fmt::print("scene {}: {} points, {} sampled, {} sub-groups; model {:.1f} mm across\n", o.scene, r.scene_points,
+             r.sampled_points, r.subgroups, diameter);
+  fmt::print("{:>4}  {:>6}  {:>5}  {:>27}  {:>8}\n", "rank", "score", "|C|", "position (mm)", "angle");
+  for (std::size_t i = 0; i < r.detections.size(); ++i) {
+    const auto& d = r.detections[i];
+    const binpose::Vec3 t = d.pose.translation();
+    const float angle = Eigen::AngleAxisf(d.pose.linear()).angle() * 180.0f / std::numbers::pi_v<float>;
+    fmt::print("{:>4}  {:>6.3f}  {:>5}  {:>8.2f} {:>8.2f} {:>9.2f}  {:>7.2f}d\n", i + 1, d.score, d.correspondences, t.x(),
+               t.y(), t.z(), angle);
+  }
+  fmt::print("{} detections in {:.1f} ms (preprocess {:.1f}, match {:.1f}, refine {:.1f})\n", r.detections.size(),
+             r.timing.total_ms, r.timing.preprocess_ms, r.timing.match_ms, r.timing.refine_ms);
+  if (!o.out.empty()) {
+    std::ofstream out(o.out);
+    out << resultJson(r, params) << "\n";
+    if (!out) throw binpose::Error(fmt::format("{}: cannot write result", o.out));
+    fmt::print("result: {}\n", o.out);
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -96,6 +249,8 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   TrainOptions train;
   addTrain(app, train);
+  DetectOptions detect;
+  addDetect(app, detect);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -103,6 +258,7 @@ int main(int argc, char** argv) {
   }
   try {
     if (app.got_subcommand("train")) return runTrain(train);
+    if (app.got_subcommand("detect")) return runDetect(detect);
   } catch (const binpose::Error& e) {
     fmt::print(stderr, "error: {}\n", e.what());
     return 2;

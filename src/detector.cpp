@@ -74,6 +74,7 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
 
   const KdTree scan_tree(scan.points);
   const PreparedScene scene = prepareScene(scan.points, scan_tree, p);
+  const SceneEvidence evidence(scan.points, scan_tree, p.viewpoint);
   const auto groups = makeSubGroups(scene.points, p.eta, p.r, static_cast<std::size_t>(p.C_n));
   result.sampled_points = scene.points.size();
   result.subgroups = groups.size();
@@ -114,7 +115,7 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
       const IcpParams icp{p.icp_iterations, p.icp_max_distance, p.verify_tolerance, p.viewpoint};
       det.pose = refinePose(det.pose, model, model_normals, scan.points, scan_tree, icp);
     }
-    det.score = supportScore(det.pose, model, model_normals, scan_tree, p.verify_tolerance, p.viewpoint);
+    det.score = evidence.evaluate(det.pose, model, model_normals, p.verify_tolerance).score();
     refine_ms += msSince(t_refine);
     if (p.verify && det.score < p.min_score) continue;
 

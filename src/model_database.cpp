@@ -176,6 +176,12 @@ void ModelDatabase::save(const std::string& path) const {
   if (!out) throw Error(fmt::format("{}: write failed", path));
 }
 
+bool ModelDatabase::isDatabaseFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  char magic[sizeof kMagic] = {};
+  return in.read(magic, sizeof magic) && std::equal(magic, magic + sizeof magic, kMagic);
+}
+
 ModelDatabase ModelDatabase::load(const std::string& path) {
   const std::string bytes = detail::readFileBytes(path);
   if (bytes.size() < sizeof kMagic + 8 || bytes.compare(0, sizeof kMagic, kMagic, sizeof kMagic) != 0)

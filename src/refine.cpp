@@ -49,18 +49,79 @@ Pose refinePose(const Pose& pose, const Points& model_points, const Points& mode
   return current;
 }
 
-float supportScore(const Pose& pose, const Points& model_points, const Points& model_normals, const KdTree& scan_tree,
-                   float tolerance, const Vec3& viewpoint) {
-  int facing = 0, supported = 0;
+SceneEvidence::SceneEvidence(const Points& scan, const KdTree& tree, const Vec3& viewpoint)
+    : tree_(tree), viewpoint_(viewpoint), to_view_(Eigen::Matrix3f::Identity()) {
+  if (scan.empty()) return;
+  Vec3 axis = Vec3::Zero();
+  for (const Vec3& p : scan) axis += p - viewpoint;
+  if (!normalizeSafe(axis)) return;
+  to_view_.row(2) = axis.transpose();  // image frame: z along the mean viewing direction
+  to_view_.row(0) = axis.unitOrthogonal().transpose();
+  to_view_.row(1) = to_view_.row(2).cross(to_view_.row(0));
+  // Cell size: about 1.5 scan spacings at the median range (spacing from a sample of points).
+  std::vector<float> spacing, depth;
+  const std::size_t step = std::max<std::size_t>(1, scan.size() / 2000);
+  for (std::size_t i = 0; i < scan.size(); i += step) {
+    std::uint32_t idx[2];
+    float d2[2];
+    if (tree.knn(scan[i], 2, idx, d2) == 2) spacing.push_back(std::sqrt(d2[1]));
+    depth.push_back((to_view_ * (scan[i] - viewpoint)).z());
+  }
+  auto median = [](std::vector<float>& v) {
+    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  };
+  if (spacing.empty() || !(median(depth) > 0)) return;
+  bin_ = 1.5f * std::max(median(spacing), 1e-6f) / median(depth);
+  float u1 = -INFINITY, v1 = -INFINITY;
+  u0_ = v0_ = INFINITY;
+  for (const Vec3& p : scan) {
+    const Vec3 q = to_view_ * (p - viewpoint);
+    if (q.z() <= 0) continue;
+    u0_ = std::min(u0_, q.x() / q.z()); u1 = std::max(u1, q.x() / q.z());
+    v0_ = std::min(v0_, q.y() / q.z()); v1 = std::max(v1, q.y() / q.z());
+  }
+  if (!(u1 >= u0_)) return;
+  bin_ = std::max(bin_, std::sqrt((u1 - u0_) * (v1 - v0_) / 4e6f));  // at most about 4 M cells
+  width_ = static_cast<long>((u1 - u0_) / bin_) + 1;
+  height_ = static_cast<long>((v1 - v0_) / bin_) + 1;
+  nearest_.assign(static_cast<std::size_t>(width_ * height_), INFINITY);
+  for (const Vec3& p : scan) {
+    float range;
+    const long c = cell(p, range);
+    if (c >= 0) nearest_[c] = std::min(nearest_[c], range);
+  }
+}
+
+long SceneEvidence::cell(const Vec3& p, float& range) const {
+  if (width_ == 0) return -1;
+  const Vec3 q = to_view_ * (p - viewpoint_);
+  if (q.z() <= 0) return -1;
+  range = q.norm();
+  const auto u = static_cast<long>(std::floor((q.x() / q.z() - u0_) / bin_));
+  const auto v = static_cast<long>(std::floor((q.y() / q.z() - v0_) / bin_));
+  if (u < 0 || v < 0 || u >= width_ || v >= height_) return -1;
+  return v * width_ + u;
+}
+
+Evidence SceneEvidence::evaluate(const Pose& pose, const Points& model_points, const Points& model_normals,
+                                 float tolerance) const {
+  Evidence e;
   for (std::size_t i = 0; i < model_points.size(); ++i) {
     const Vec3 p = pose * model_points[i];
-    if (!facesSensor(p, pose.linear() * model_normals[i], viewpoint)) continue;
-    ++facing;
+    if (!facesSensor(p, pose.linear() * model_normals[i], viewpoint_)) continue;
+    ++e.facing;
     std::uint32_t j;
     float d2;
-    if (scan_tree.nearest(p, j, d2) && d2 <= tolerance * tolerance) ++supported;
+    if (tree_.nearest(p, j, d2) && d2 <= tolerance * tolerance) {
+      ++e.supported;
+      continue;
+    }
+    float range;
+    const long c = cell(p, range);
+    if (c >= 0 && nearest_[c] > range + 2 * tolerance && std::isfinite(nearest_[c])) ++e.contradicted;
   }
-  return facing == 0 ? 0.0f : static_cast<float>(supported) / static_cast<float>(facing);
+  return e;
 }
 
 }  // namespace binpose

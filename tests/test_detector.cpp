@@ -5,6 +5,8 @@
 #include <binpose/shapes.hpp>
 
 #include "synthetic.hpp"
+
+#include <fstream>
 #include "test_util.hpp"
 
 using namespace binpose;
@@ -79,4 +81,59 @@ TEST(Detector, EmptySceneGivesNoDetection) {
   const DetectionResult result = detector.detect(PointCloud{});
   EXPECT_TRUE(result.detections.empty());
   EXPECT_EQ(result.scene_points, 0u);
+}
+
+// ---- real scans -------------------------------------------------------------------------------
+
+namespace {
+Pose readPose(const std::string& path, const std::string& section = "") {
+  std::ifstream in(path);
+  std::string line;
+  if (!section.empty())
+    while (std::getline(in, line) && line.find(section) == std::string::npos) {}
+  Eigen::Matrix4f T;
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) in >> T(r, c);
+  Pose pose = Pose::Identity();
+  pose.matrix() = T;
+  return pose;
+}
+}  // namespace
+
+TEST(RealScans, ParasaurolophusInUwaRs1) {
+  REQUIRE_DATA("uwa/rs1_normals.ply");
+  const OrientedModel model = prepareModel(readMesh(test::dataPath("uwa/parasaurolophus_6700.ply")), ModelParams{});
+  const ModelDatabase db = ModelDatabase::build(model, defaultQuantization(model.diameter));
+  const PointCloud scan = readPlyCloud(test::dataPath("uwa/rs1_normals.ply"));
+  const Pose reference = readPose(test::dataPath("uwa/REFERENCE_pose_parasaurolophus_in_rs1_DERIVED.txt"));
+  const Vec3 c = centroidOf(db.model().points);
+  for (const char* preset : {"default", "thesis"}) {
+    const Detector detector(db, scaledToModel(presetByName(preset), model.diameter));
+    const DetectionResult result = detector.detect(scan);
+    ASSERT_FALSE(result.detections.empty()) << preset;
+    const Errors e = poseErrors(result.detections.front().pose, reference, c);
+    EXPECT_LT(e.centroid_mm, 5.0f) << preset;
+    EXPECT_LT(e.angle_deg, 5.0f) << preset;
+    std::printf("%s: %zu detections, best %.2f mm %.2f deg, %.0f ms\n", preset, result.detections.size(), e.centroid_mm,
+                e.angle_deg, result.timing.total_ms);
+  }
+}
+
+TEST(RealScans, MilkCartonInPclScene) {
+  REQUIRE_DATA("pcl_milk/milk_cartoon_all_small_clorox.pcd");
+  ModelParams mp;
+  mp.num_points = 2000;
+  const OrientedModel model = prepareModel(readPcd(test::dataPath("pcl_milk/milk.pcd"), 1000.0), mp);
+  const ModelDatabase db = ModelDatabase::build(model, defaultQuantization(model.diameter));
+  const PointCloud scan = readPcd(test::dataPath("pcl_milk/milk_cartoon_all_small_clorox.pcd"), 1000.0);
+  const Pose truth = readPose(test::dataPath("pcl_milk/GT_milk_poses.txt"), "[test/milk.pcd");
+  const Detector detector(db, scaledToModel(defaultPreset(), model.diameter));
+  const DetectionResult result = detector.detect(scan);
+  ASSERT_FALSE(result.detections.empty());
+  const Errors e = poseErrors(result.detections.front().pose, truth, centroidOf(db.model().points));
+  EXPECT_LT(e.centroid_mm, 5.0f);
+  EXPECT_LT(e.angle_deg, 5.0f);
+  std::printf("%zu detections, best score %.2f: %.2f mm %.2f deg; runner-up score %.2f; %.0f ms\n", result.detections.size(),
+              result.detections.front().score, e.centroid_mm, e.angle_deg,
+              result.detections.size() > 1 ? result.detections[1].score : 0.0f, result.timing.total_ms);
 }

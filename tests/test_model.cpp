@@ -8,25 +8,10 @@
 
 #include <nlohmann/json.hpp>
 
-#include <cstdio>
-#include <cstdlib>
 
 using namespace binpose;
 using test::dataPath;
 
-namespace {
-struct CliRun {
-  int code;
-  std::string out;
-};
-
-/// Runs the CLI with stdout and stderr captured.
-CliRun runCli(const std::string& args) {
-  const std::string log = test::tempPath("cli.log");
-  const int status = std::system((std::string(BINPOSE_CLI) + " " + args + " > " + log + " 2>&1").c_str());
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, test::readAll(log)};
-}
-}  // namespace
 
 TEST(Model, IpdPartMeshDiameterMatchesModelsInfo) {
   REQUIRE_DATA("ipd_parts/models/obj_000004.ply");
@@ -89,49 +74,3 @@ TEST(Model, RejectsAbsurdParameters) {
   EXPECT_THROW(prepareModel(tri, p), Error);
 }
 
-TEST(TrainCli, UwaAndIpdModelsTrainAndLoad) {
-  REQUIRE_DATA("uwa/parasaurolophus_6700.ply");
-  for (const std::string model : {"uwa/parasaurolophus_6700.ply", "ipd_parts/models/obj_000008.ply"}) {
-    const std::string db = test::tempPath("model.bpdb");
-    const CliRun run = runCli(fmt::format("train --model {} --out {} --points 1500", dataPath(model), db));
-    ASSERT_EQ(run.code, 0) << run.out;
-    EXPECT_NE(run.out.find("diameter"), std::string::npos);
-    EXPECT_NE(run.out.find("entries"), std::string::npos);
-    const ModelDatabase loaded = ModelDatabase::load(db);
-    EXPECT_NEAR(double(loaded.model().points.size()), 1500.0, 15.0);
-    EXPECT_GT(loaded.stats().keys_used, 1000u);
-  }
-}
-
-TEST(TrainCli, MetresAndParameters) {
-  REQUIRE_DATA("pcl_milk/milk.pcd");
-  const std::string db = test::tempPath("milk.bpdb");
-  const CliRun run = runCli(fmt::format("train --model {} --out {} --units m --points 1000 --d-dist 3 --d-angle 10 --overlap 0.2",
-                                     dataPath("pcl_milk/milk.pcd"), db));
-  ASSERT_EQ(run.code, 0) << run.out;
-  const ModelDatabase loaded = ModelDatabase::load(db);
-  EXPECT_FLOAT_EQ(loaded.keySpace().params().d_dist, 3.0f);
-  EXPECT_NEAR(test::deg(loaded.keySpace().params().d_angle), 10.0, 1e-4);
-  EXPECT_FLOAT_EQ(loaded.keySpace().params().overlap, 0.2f);
-  EXPECT_GT(loaded.model().diameter, 100.0f);  // a carton of about 0.2 m, now in mm
-}
-
-TEST(TrainCli, BadInputExitsTwoWithOneLine) {
-  const std::string junk = test::tempPath("junk.ply");
-  test::writeAll(junk, "ply\nformat ascii 1.0\nelement vertex 100\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n");
-  CliRun run = runCli(fmt::format("train --model {} --out {}", junk, test::tempPath("x.bpdb")));
-  EXPECT_EQ(run.code, 2);
-  EXPECT_NE(run.out.find("truncated"), std::string::npos) << run.out;
-  EXPECT_EQ(std::count(run.out.begin(), run.out.end(), '\n'), 1) << run.out;
-  run = runCli(fmt::format("train --model {} --out {} --d-angle 0", dataPath("ipd_parts/models/obj_000001.ply"),
-                           test::tempPath("x.bpdb")));
-  EXPECT_EQ(run.code, 2);
-  EXPECT_NE(run.out.find("d_angle"), std::string::npos) << run.out;
-  run = runCli(fmt::format("train --model {} --out {} --units inch", dataPath("ipd_parts/models/obj_000001.ply"),
-                           test::tempPath("x.bpdb")));
-  EXPECT_EQ(run.code, 2);
-  run = runCli(fmt::format("train --model {} --out {} --points 3", dataPath("ipd_parts/models/obj_000001.ply"),
-                           test::tempPath("x.bpdb")));
-  EXPECT_EQ(run.code, 2);
-  EXPECT_NE(run.out.find("model points"), std::string::npos) << run.out;
-}

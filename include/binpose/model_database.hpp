@@ -41,6 +41,8 @@ class ModelDatabase {
   /// Versioned binary file: magic, format version, parameters, model points and normals, the
   /// table, and a CRC-32 of all of it. Throws binpose::Error on any failure.
   void save(const std::string& path) const;
+  /// True when the file starts with the database magic (whatever its version or state).
+  static bool isDatabaseFile(const std::string& path);
   /// Refuses (binpose::Error) a file of another version, a truncated or corrupt file.
   static ModelDatabase load(const std::string& path);
 

@@ -3,6 +3,9 @@
 #include <binpose/kdtree.hpp>
 #include <binpose/pose.hpp>
 
+#include <algorithm>
+#include <vector>
+
 namespace binpose {
 
 struct IcpParams {
@@ -18,9 +21,37 @@ struct IcpParams {
 Pose refinePose(const Pose& pose, const Points& model_points, const Points& model_normals, const Points& scan,
                 const KdTree& scan_tree, const IcpParams& params);
 
-/// Share of the posed model's sensor-facing points with a scan point within `tolerance` mm:
-/// 1 for a fully supported visible side, about 0 for a pose in empty space.
-float supportScore(const Pose& pose, const Points& model_points, const Points& model_normals, const KdTree& scan_tree,
-                   float tolerance, const Vec3& viewpoint);
+/// What the scan says about a posed model's sensor-facing points.
+struct Evidence {
+  int facing = 0;      ///< model points whose normal faces the sensor
+  int supported = 0;   ///< ... with a scan point within the tolerance
+  int contradicted = 0;  ///< ... where the scan sees a surface clearly behind them (free space)
+  /// (supported - contradicted) / facing, in [0, 1]: near 1 for a fully visible, correct pose.
+  [[nodiscard]] float score() const {
+    return facing == 0 ? 0.0f : std::max(0.0f, float(supported - contradicted) / float(facing));
+  }
+};
+
+/// The scan as seen from its viewpoint: a kd-tree for support, and a range image (nearest range
+/// per direction, built from the points themselves, so unorganized scans work too) for
+/// free-space contradictions.
+class SceneEvidence {
+ public:
+  SceneEvidence(const Points& scan, const KdTree& tree, const Vec3& viewpoint);
+  [[nodiscard]] Evidence evaluate(const Pose& pose, const Points& model_points, const Points& model_normals,
+                                  float tolerance) const;
+
+ private:
+  /// Range-image cell of a point, or -1 outside the image.
+  [[nodiscard]] long cell(const Vec3& p, float& range) const;
+
+  const KdTree& tree_;
+  Vec3 viewpoint_;
+  Eigen::Matrix3f to_view_;  ///< rotation into the image frame (z along the scan's mean direction)
+  float bin_ = 0;            ///< cell size in tangent-plane units
+  float u0_ = 0, v0_ = 0;
+  long width_ = 0, height_ = 0;
+  std::vector<float> nearest_;  ///< per cell, the nearest range seen (infinity when empty)
+};
 
 }  // namespace binpose

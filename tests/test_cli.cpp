@@ -1,0 +1,179 @@
+// The command-line front end: `binpose train` and `binpose detect`, run as a user would.
+#include <binpose/io.hpp>
+#include <binpose/model_database.hpp>
+
+#include "test_util.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cstdlib>
+#include <filesystem>
+#include <sys/wait.h>
+#include <unistd.h>
+
+using namespace binpose;
+using test::dataPath;
+
+namespace {
+struct CliRun {
+  int code;
+  std::string out;  ///< stdout and stderr
+  std::string err;  ///< stderr
+};
+
+/// Runs the CLI with stdout and stderr captured (stderr alone in `err`).
+CliRun runCli(const std::string& args) {
+  const std::string log = test::tempPath("cli.log"), err = test::tempPath("cli.err");
+  const int status = std::system((std::string(BINPOSE_CLI) + " " + args + " > " + log + " 2> " + err).c_str());
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, test::readAll(log) + test::readAll(err), test::readAll(err)};
+}
+}  // namespace
+
+TEST(TrainCli, UwaAndIpdModelsTrainAndLoad) {
+  REQUIRE_DATA("uwa/parasaurolophus_6700.ply");
+  for (const std::string model : {"uwa/parasaurolophus_6700.ply", "ipd_parts/models/obj_000008.ply"}) {
+    const std::string db = test::tempPath("model.bpdb");
+    const CliRun run = runCli(fmt::format("train --model {} --out {} --points 1500", dataPath(model), db));
+    ASSERT_EQ(run.code, 0) << run.out;
+    EXPECT_NE(run.out.find("diameter"), std::string::npos);
+    EXPECT_NE(run.out.find("entries"), std::string::npos);
+    const ModelDatabase loaded = ModelDatabase::load(db);
+    EXPECT_NEAR(double(loaded.model().points.size()), 1500.0, 15.0);
+    EXPECT_GT(loaded.stats().keys_used, 1000u);
+  }
+}
+
+TEST(TrainCli, MetresAndParameters) {
+  REQUIRE_DATA("pcl_milk/milk.pcd");
+  const std::string db = test::tempPath("milk.bpdb");
+  const CliRun run = runCli(fmt::format("train --model {} --out {} --units m --points 1000 --d-dist 3 --d-angle 10 --overlap 0.2",
+                                     dataPath("pcl_milk/milk.pcd"), db));
+  ASSERT_EQ(run.code, 0) << run.out;
+  const ModelDatabase loaded = ModelDatabase::load(db);
+  EXPECT_FLOAT_EQ(loaded.keySpace().params().d_dist, 3.0f);
+  EXPECT_NEAR(test::deg(loaded.keySpace().params().d_angle), 10.0, 1e-4);
+  EXPECT_FLOAT_EQ(loaded.keySpace().params().overlap, 0.2f);
+  EXPECT_GT(loaded.model().diameter, 100.0f);  // a carton of about 0.2 m, now in mm
+}
+
+TEST(TrainCli, BadInputExitsTwoWithOneLine) {
+  const std::string junk = test::tempPath("junk.ply");
+  test::writeAll(junk, "ply\nformat ascii 1.0\nelement vertex 100\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n");
+  CliRun run = runCli(fmt::format("train --model {} --out {}", junk, test::tempPath("x.bpdb")));
+  EXPECT_EQ(run.code, 2);
+  EXPECT_NE(run.out.find("truncated"), std::string::npos) << run.out;
+  EXPECT_EQ(std::count(run.out.begin(), run.out.end(), '\n'), 1) << run.out;
+  run = runCli(fmt::format("train --model {} --out {} --d-angle 0", dataPath("ipd_parts/models/obj_000001.ply"),
+                           test::tempPath("x.bpdb")));
+  EXPECT_EQ(run.code, 2);
+  EXPECT_NE(run.out.find("d_angle"), std::string::npos) << run.out;
+  run = runCli(fmt::format("train --model {} --out {} --units inch", dataPath("ipd_parts/models/obj_000001.ply"),
+                           test::tempPath("x.bpdb")));
+  EXPECT_EQ(run.code, 2);
+  run = runCli(fmt::format("train --model {} --out {} --points 3", dataPath("ipd_parts/models/obj_000001.ply"),
+                           test::tempPath("x.bpdb")));
+  EXPECT_EQ(run.code, 2);
+  EXPECT_NE(run.out.find("model points"), std::string::npos) << run.out;
+}
+
+namespace {
+/// A small cap database shared by the detect tests.
+std::string capDatabase() {
+  static const std::string path = [] {
+    // one per process: CTest runs the tests as parallel processes
+    const std::string db = (std::filesystem::temp_directory_path() / "binpose_tests" /
+                            ("cli_cap_" + std::to_string(::getpid()) + ".bpdb")).string();
+    std::filesystem::create_directories(std::filesystem::path(db).parent_path());
+    const int status = std::system((std::string(BINPOSE_CLI) + " train --model builtin:cap --points 1000 --out " + db + " > /dev/null").c_str());
+    EXPECT_EQ(status, 0);
+    return db;
+  }();
+  return path;
+}
+}  // namespace
+
+TEST(DetectCli, JsonResultOnARealScan) {
+  REQUIRE_DATA("uwa/rs1_normals.ply");
+  const std::string out = test::tempPath("rs1.json");
+  const CliRun run = runCli(fmt::format("detect --model {} --model-points 2000 --scene {} --out {}",
+                                        dataPath("uwa/parasaurolophus_6700.ply"), dataPath("uwa/rs1_normals.ply"), out));
+  ASSERT_EQ(run.code, 0) << run.out;
+  const auto j = nlohmann::json::parse(test::readAll(out));
+  ASSERT_GE(j["detections"].size(), 1u);
+  const auto& pose = j["detections"][0]["pose"];
+  ASSERT_EQ(pose.size(), 4u);
+  EXPECT_EQ(pose[3], nlohmann::json({0.0, 0.0, 0.0, 1.0}));
+  Eigen::Matrix3f R;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) R(r, c) = pose[r][c].get<float>();
+  EXPECT_TRUE((R * R.transpose()).isIdentity(1e-4f)) << "a rotation";
+  EXPECT_NEAR(R.determinant(), 1.0f, 1e-4f);
+  for (const char* key : {"preprocess", "match", "refine", "total"}) EXPECT_TRUE(j["timing_ms"].contains(key)) << key;
+  EXPECT_EQ(j["scene_points"].get<int>(), 114373);
+  EXPECT_GT(j["params"]["r"].get<double>(), 100.0) << "r scaled to the 312 mm model";
+  EXPECT_NE(run.out.find("rank"), std::string::npos) << "a summary table";
+}
+
+TEST(DetectCli, EmptySceneIsZeroDetectionsAndExitZero) {
+  const std::string empty = test::tempPath("empty.ply");
+  test::writeAll(empty, "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\nend_header\n");
+  const std::string out = test::tempPath("empty.json");
+  const CliRun run = runCli(fmt::format("detect --model {} --scene {} --out {}", capDatabase(), empty, out));
+  ASSERT_EQ(run.code, 0) << run.out;
+  EXPECT_EQ(nlohmann::json::parse(test::readAll(out))["detections"].size(), 0u);
+}
+
+TEST(DetectCli, SceneInMetresGivenAsMillimetresWarns) {
+  REQUIRE_DATA("pcl_milk/milk.pcd");
+  const CliRun run = runCli(fmt::format("detect --model {} --scene {}", capDatabase(), dataPath("pcl_milk/milk.pcd")));
+  EXPECT_EQ(run.code, 0) << run.out;
+  EXPECT_NE(run.err.find("--units m"), std::string::npos) << run.err;
+}
+
+TEST(DetectCli, BadInputExitsTwoWithOneLine) {
+  REQUIRE_DATA("pcl_milk/milk.pcd");
+  const std::string cut = test::tempPath("cut.pcd");
+  const std::string bytes = test::readAll(dataPath("pcl_milk/milk.pcd"));
+  test::writeAll(cut, bytes.substr(0, bytes.size() / 2));
+  CliRun run = runCli(fmt::format("detect --model {} --scene {}", capDatabase(), cut));
+  EXPECT_EQ(run.code, 2);
+  EXPECT_EQ(std::count(run.err.begin(), run.err.end(), '\n'), 1) << run.err;
+  EXPECT_NE(run.err.find("truncated"), std::string::npos) << run.err;
+  run = runCli(fmt::format("detect --model {} --scene {} --r -3", capDatabase(), dataPath("pcl_milk/milk.pcd")));
+  EXPECT_EQ(run.code, 2);
+  EXPECT_NE(run.err.find("r (sampling radius)"), std::string::npos) << run.err;
+  const std::string params = test::tempPath("params.json");
+  test::writeAll(params, R"({"e_gmax": 2.0, "radius": 3})");
+  run = runCli(fmt::format("detect --model {} --scene {} --params {}", capDatabase(), dataPath("pcl_milk/milk.pcd"), params));
+  EXPECT_EQ(run.code, 2);
+  EXPECT_NE(run.err.find("unknown parameter 'radius'"), std::string::npos) << run.err;
+  const std::string corrupt = test::tempPath("corrupt.bpdb");
+  std::string db = test::readAll(capDatabase());
+  db[db.size() / 2] ^= 1;
+  test::writeAll(corrupt, db);
+  run = runCli(fmt::format("detect --model {} --scene {}", corrupt, dataPath("pcl_milk/milk.pcd")));
+  EXPECT_EQ(run.code, 2);
+  EXPECT_NE(run.err.find("checksum"), std::string::npos) << run.err;
+  run = runCli(fmt::format("detect --model {} --scene {}", capDatabase(), test::tempPath("depth.png")));
+  EXPECT_EQ(run.code, 2);
+}
+
+TEST(DetectCli, ParametersFromJsonAndPreset) {
+  const std::string params = test::tempPath("params.json");
+  test::writeAll(params, R"({"e_gmax": 2.25, "C_n": 9, "subsampling": "random"})");
+  const std::string scene = test::tempPath("flat.ply");
+  Points flat;
+  for (int i = 0; i < 50; ++i)
+    for (int j = 0; j < 50; ++j) flat.emplace_back(float(i), float(j), 500.0f);
+  writePly(scene, flat);
+  const std::string out = test::tempPath("p.json");
+  const CliRun run = runCli(fmt::format("detect --model {} --scene {} --preset thesis --params {} --c-n 10 --out {}",
+                                        capDatabase(), scene, params, out));
+  ASSERT_EQ(run.code, 0) << run.out;
+  const auto p = nlohmann::json::parse(test::readAll(out))["params"];
+  EXPECT_DOUBLE_EQ(p["e_gmax"].get<double>(), 2.25);  // from the file
+  EXPECT_EQ(p["C_n"].get<int>(), 10);                 // the command line wins over the file
+  EXPECT_EQ(p["subsampling"].get<std::string>(), "random");
+  EXPECT_FALSE(p["refine"].get<bool>());  // thesis preset
+}
