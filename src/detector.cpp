@@ -44,7 +44,8 @@ float Detector::overlap(const Pose& a, const Pose& b) const {
   if ((a * model_centroid_ - b * model_centroid_).norm() > 2 * model_radius_) return 0.0f;
   const Points& model = db_.model().points;
   const Pose b_from_a = b.inverse() * a;
-  const float limit = params_.sigma_dist * params_.sigma_dist;
+  const float near_distance = 0.1f * db_.model().diameter;  // the usual correctness radius (ADD < 0.1 d)
+  const float limit = near_distance * near_distance;
   int near = 0;
   for (const Vec3& m : model) {
     std::uint32_t j;
@@ -119,6 +120,8 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
     refine_ms += msSince(t_refine);
     if (p.verify && det.score < p.min_score) continue;
 
+    result.detections.push_back(det);
+    if (det.score < p.removal_score) continue;  // not sure enough to take its points away
     // 5.2.6, eq. 39: remove the scene points within sigma_dist of the posed model.
     const Pose inverse = det.pose.inverse();
     const Vec3 centre = det.pose * model_centroid_;
@@ -129,7 +132,6 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
       float d2;
       if (model_tree_.nearest(inverse * scene.points[i], j, d2) && d2 <= p.sigma_dist * p.sigma_dist) removed[i] = 1;
     }
-    result.detections.push_back(det);
   }
   result.timing.refine_ms = refine_ms;
   result.timing.match_ms = msSince(t_match) - refine_ms;

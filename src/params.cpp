@@ -33,6 +33,7 @@ void visit(json& j, DetectionParams& p, bool write) {
   field(j, "verify", p.verify, write);
   field(j, "verify_tolerance", p.verify_tolerance, write);
   field(j, "min_score", p.min_score, write);
+  field(j, "removal_score", p.removal_score, write);
   field(j, "max_instances", p.max_instances, write);
   field(j, "clique_work_limit", p.clique_work_limit, write);
   field(j, "seed", p.seed, write);
@@ -64,6 +65,7 @@ DetectionParams thesisPreset() {
   p.subsampling = Subsampling::Random;
   p.refine = false;
   p.verify = false;
+  p.removal_score = 0.0f;
   return p;
 }
 
@@ -100,6 +102,7 @@ void validate(const DetectionParams& p) {
   if (p.k_normals < 3 || p.k_normals > 200) throw Error(fmt::format("k_normals must lie in [3, 200], got {}", p.k_normals));
   if (p.icp_iterations < 0 || p.icp_iterations > 1000) throw Error(fmt::format("icp_iterations must lie in [0, 1000], got {}", p.icp_iterations));
   if (!(p.min_score >= 0 && p.min_score <= 1)) throw Error(fmt::format("min_score must lie in [0, 1], got {}", p.min_score));
+  if (!(p.removal_score >= 0 && p.removal_score <= 1)) throw Error(fmt::format("removal_score must lie in [0, 1], got {}", p.removal_score));
   if (p.max_instances < 0) throw Error(fmt::format("max_instances must be >= 0, got {}", p.max_instances));
   if (p.clique_work_limit < 1) throw Error("clique_work_limit must be >= 1");
   if (!p.viewpoint.allFinite()) throw Error("viewpoint must be finite");

@@ -41,7 +41,7 @@ class Detector {
   [[nodiscard]] const DetectionParams& params() const { return params_; }
 
  private:
-  /// Share of the model's points that, posed by `a`, lie within sigma_dist of the model posed by `b`.
+  /// Share of the model's points that, posed by `a`, lie within 0.1 diameter of the model posed by `b`.
   [[nodiscard]] float overlap(const Pose& a, const Pose& b) const;
   /// Keeps each detection (best first) unless its model mostly overlaps a better one's: two
   /// poses of one object (a near-symmetric flip found first, say) are reported once.

@@ -33,6 +33,10 @@ struct DetectionParams {
   bool verify = true;             ///< score = share of the posed model's sensor-facing points the scan supports
   float verify_tolerance = 1.0f;  ///< distance within which a scan point supports a model point, mm
   float min_score = 0.15f;        ///< detections scoring less are rejected (verify only)
+  /// Scene points are removed (5.2.6) only after a detection scoring at least this; a less
+  /// certain one leaves them for later sub-groups, and overlap suppression keeps the better pose.
+  /// 0 removes after every detection, as the thesis does.
+  float removal_score = 0.7f;
 
   // --- limits and determinism --------------------------------------------------------------
   int max_instances = 0;              ///< stop after this many detections (0: no limit)
