@@ -97,7 +97,7 @@ int runTrain(const TrainOptions& o) {
 struct DetectOptions {
   std::string model, scene, intrinsics, image_id, out, preset = "default", params_file;
   std::string units = "mm", model_units = "mm";
-  std::optional<int> max_instances, C_n, k_normals;
+  std::optional<int> max_instances, C_n, k_normals, candidates;
   std::optional<float> r, rho_sub, eta, e_gmax, sigma_dist, min_score;
   std::optional<std::string> subsampling;
   std::optional<bool> refine, verify;
@@ -129,6 +129,8 @@ void addDetect(CLI::App& app, DetectOptions& o) {
   d->add_option("--sigma-dist", o.sigma_dist, "Removal distance sigma_dist, mm (default 6 mm x diameter/60 mm)");
   d->add_option("--k-normals", o.k_normals, "Neighbours of a scene normal's plane fit (default 6)");
   d->add_option("--subsampling", o.subsampling, "random (thesis) or voxel")->check(CLI::IsMember({"random", "voxel"}));
+  d->add_option("--candidates-per-point", o.candidates,
+                "Model points kept per scene point (default 1, eq. 12; about 8 for bodies of revolution)");
   d->add_option("--refine", o.refine, "ICP refinement on/off (true|false)");
   d->add_option("--verify", o.verify, "Verification score and rejection on/off (true|false)");
   d->add_option("--min-score", o.min_score, "Smallest accepted verification score in [0, 1]");
@@ -155,6 +157,7 @@ binpose::DetectionParams detectParams(const DetectOptions& o, float diameter, co
   if (o.sigma_dist) p.sigma_dist = *o.sigma_dist;
   if (o.k_normals) p.k_normals = *o.k_normals;
   if (o.subsampling) p.subsampling = *o.subsampling == "random" ? binpose::Subsampling::Random : binpose::Subsampling::Voxel;
+  if (o.candidates) p.candidates_per_point = *o.candidates;
   if (o.refine) p.refine = *o.refine;
   if (o.verify) p.verify = *o.verify;
   if (o.min_score) p.min_score = *o.min_score;

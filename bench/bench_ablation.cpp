@@ -1,10 +1,11 @@
 // Ablation of the pipeline's options on seeded synthetic scenes with exact ground truth.
-// Usage: binpose_bench_ablation MODEL_MESH [SCENES=10] [COPIES=4]
+// Usage: binpose_bench_ablation MODEL_MESH|builtin:cap [SCENES=10] [COPIES=4]
 // Each scene: COPIES copies of the model at random poses on a grid (some touching), rendered
 // by a z-buffer with 0.1 mm depth noise. A detection is correct within 0.1 x diameter of a copy's
 // centroid; errors are over the correct ones.
 #include <binpose/detector.hpp>
 #include <binpose/io.hpp>
+#include <binpose/shapes.hpp>
 
 #include "../tests/synthetic.hpp"
 
@@ -37,7 +38,8 @@ int main(int argc, char** argv) {
     return 2;
   }
   const int scenes = argc > 2 ? std::stoi(argv[2]) : 10, copies = argc > 3 ? std::stoi(argv[3]) : 4;
-  const Mesh mesh = readMesh(argv[1]);
+  const std::string name = argv[1];
+  const Mesh mesh = name.rfind("builtin:", 0) == 0 ? builtinPart(name.substr(8)) : readMesh(name);
   const OrientedModel model = prepareModel(mesh, ModelParams{});
   const ModelDatabase db = ModelDatabase::build(model, defaultQuantization(model.diameter));
   Vec3 centroid = Vec3::Zero();
@@ -53,7 +55,26 @@ int main(int argc, char** argv) {
   variants.push_back({"thesis + voxel + verify", p});
   p.refine = true;
   variants.push_back({"thesis + voxel + verify + ICP", p});
-  variants.push_back({"default (+ removal only if score >= 0.7)", defaultPreset()});
+  variants.push_back({"default (+ removal only if score >= 0.8)", defaultPreset()});
+  p = defaultPreset();
+  p.candidates_per_point = 8;
+  variants.push_back({"default + 8 candidates per point", p});
+  if (const char* extra = std::getenv("ABL_CANDIDATES"))  // e.g. "2,4": more default rows
+    for (std::string rest = extra; !rest.empty();) {
+      const std::size_t comma = rest.find(',');
+      DetectionParams q = defaultPreset();
+      q.candidates_per_point = std::stoi(rest.substr(0, comma));
+      variants.push_back({strdup(("default, candidates_per_point " + rest.substr(0, comma)).c_str()), q});
+      rest = comma == std::string::npos ? "" : rest.substr(comma + 1);
+    }
+  if (const char* extra = std::getenv("ABL_REMOVAL_SCORES"))  // e.g. "0.8,0.9": more default rows
+    for (std::string rest = extra; !rest.empty();) {
+      const std::size_t comma = rest.find(',');
+      DetectionParams q = defaultPreset();
+      q.removal_score = std::stof(rest.substr(0, comma));
+      variants.push_back({strdup(("default, removal_score " + rest.substr(0, comma)).c_str()), q});
+      rest = comma == std::string::npos ? "" : rest.substr(comma + 1);
+    }
 
   std::printf("model %s, %.1f mm; %d scenes x %d copies\n", argv[1], model.diameter, scenes, copies);
   std::printf("%-40s %7s %6s %9s %9s %9s\n", "variant", "recall", "false", "cent mm", "angle deg", "ms/scene");

@@ -45,21 +45,28 @@ float Detector::overlap(const Pose& a, const Pose& b) const {
   const Points& model = db_.model().points;
   const Pose b_from_a = b.inverse() * a;
   const float near_distance = 0.1f * db_.model().diameter;  // the usual correctness radius (ADD < 0.1 d)
-  const float limit = near_distance * near_distance;
   int near = 0;
   for (const Vec3& m : model) {
     std::uint32_t j;
     float d2;
-    if (model_tree_.nearest(b_from_a * m, j, d2) && d2 <= limit) ++near;
+    if (model_tree_.nearest(b_from_a * m, j, d2) && d2 <= near_distance * near_distance) ++near;
   }
   return static_cast<float>(near) / static_cast<float>(model.size());
 }
 
-std::vector<Detection> Detector::suppressOverlaps(const std::vector<Detection>& ranked) const {
+std::vector<Detection> Detector::suppressDuplicates(std::vector<Hypothesis> hypotheses, std::size_t scan_size) const {
+  std::stable_sort(hypotheses.begin(), hypotheses.end(),
+                   [](const Hypothesis& a, const Hypothesis& b) { return a.detection.score > b.detection.score; });
+  std::vector<char> claimed(scan_size, 0);
   std::vector<Detection> kept;
-  for (const Detection& d : ranked) {
-    const bool duplicate = std::any_of(kept.begin(), kept.end(), [&](const Detection& k) { return overlap(d.pose, k.pose) > 0.5f; });
-    if (!duplicate) kept.push_back(d);
+  for (const Hypothesis& h : hypotheses) {
+    std::size_t taken = 0;
+    for (const auto i : h.support) taken += claimed[i];
+    if (4 * taken > h.support.size()) continue;  // a quarter explained already: not a new object
+    if (std::any_of(kept.begin(), kept.end(), [&](const Detection& k) { return overlap(h.detection.pose, k.pose) > 0.5f; }))
+      continue;  // another pose of an object already found (a near-symmetric flip, say)
+    for (const auto i : h.support) claimed[i] = 1;
+    kept.push_back(h.detection);
   }
   return kept;
 }
@@ -82,14 +89,15 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   result.timing.preprocess_ms = msSince(t0);
 
   std::vector<char> removed(scene.points.size(), 0);
-  Voter voter(db_);
+  Voter voter(db_, p.candidates_per_point);
   std::vector<std::uint32_t> members;
   std::vector<Correspondence> candidates;
   Points clique_model, clique_scene;
+  std::vector<Hypothesis> hypotheses;
+  int confident = 0;  // detections that removed their points
   double refine_ms = 0;
   const auto t_match = Clock::now();
   for (const auto& group : groups) {
-    if (p.max_instances > 0 && static_cast<int>(result.detections.size()) >= p.max_instances) break;
     members.clear();
     for (const auto i : group)
       if (!removed[i]) members.push_back(i);
@@ -116,12 +124,18 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
       const IcpParams icp{p.icp_iterations, p.icp_max_distance, p.verify_tolerance, p.viewpoint};
       det.pose = refinePose(det.pose, model, model_normals, scan.points, scan_tree, icp);
     }
-    det.score = evidence.evaluate(det.pose, model, model_normals, p.verify_tolerance).score();
+    Hypothesis h;
+    det.score = evidence.evaluate(det.pose, model, model_normals, p.verify_tolerance, db_.model().sample_radius, &h.support)
+                    .score();
     refine_ms += msSince(t_refine);
     if (p.verify && det.score < p.min_score) continue;
 
-    result.detections.push_back(det);
-    if (det.score < p.removal_score) continue;  // not sure enough to take its points away
+    std::sort(h.support.begin(), h.support.end());
+    h.support.erase(std::unique(h.support.begin(), h.support.end()), h.support.end());
+    h.detection = det;
+    hypotheses.push_back(std::move(h));
+    if (det.score < p.removal_score) continue;
+    if (p.max_instances > 0 && ++confident >= p.max_instances) break;  // enough sure detections  // not sure enough to take its points away
     // 5.2.6, eq. 39: remove the scene points within sigma_dist of the posed model.
     const Pose inverse = det.pose.inverse();
     const Vec3 centre = det.pose * model_centroid_;
@@ -136,9 +150,11 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   result.timing.refine_ms = refine_ms;
   result.timing.match_ms = msSince(t_match) - refine_ms;
   if (p.verify) {
-    std::stable_sort(result.detections.begin(), result.detections.end(),
-                     [](const Detection& a, const Detection& b) { return a.score > b.score; });
-    result.detections = suppressOverlaps(result.detections);
+    result.detections = suppressDuplicates(std::move(hypotheses), scan.size());
+    if (p.max_instances > 0 && static_cast<int>(result.detections.size()) > p.max_instances)
+      result.detections.resize(static_cast<std::size_t>(p.max_instances));
+  } else {
+    for (Hypothesis& h : hypotheses) result.detections.push_back(h.detection);
   }
   result.timing.total_ms = msSince(t0);
   return result;

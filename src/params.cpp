@@ -27,6 +27,7 @@ void visit(json& j, DetectionParams& p, bool write) {
   field(j, "C_n", p.C_n, write);
   field(j, "sigma_dist", p.sigma_dist, write);
   field(j, "k_normals", p.k_normals, write);
+  field(j, "candidates_per_point", p.candidates_per_point, write);
   field(j, "refine", p.refine, write);
   field(j, "icp_iterations", p.icp_iterations, write);
   field(j, "icp_max_distance", p.icp_max_distance, write);
@@ -66,6 +67,7 @@ DetectionParams thesisPreset() {
   p.refine = false;
   p.verify = false;
   p.removal_score = 0.0f;
+  p.candidates_per_point = 1;
   return p;
 }
 
@@ -103,6 +105,8 @@ void validate(const DetectionParams& p) {
   if (p.icp_iterations < 0 || p.icp_iterations > 1000) throw Error(fmt::format("icp_iterations must lie in [0, 1000], got {}", p.icp_iterations));
   if (!(p.min_score >= 0 && p.min_score <= 1)) throw Error(fmt::format("min_score must lie in [0, 1], got {}", p.min_score));
   if (!(p.removal_score >= 0 && p.removal_score <= 1)) throw Error(fmt::format("removal_score must lie in [0, 1], got {}", p.removal_score));
+  if (p.candidates_per_point < 1 || p.candidates_per_point > 64)
+    throw Error(fmt::format("candidates_per_point must lie in [1, 64], got {}", p.candidates_per_point));
   if (p.max_instances < 0) throw Error(fmt::format("max_instances must be >= 0, got {}", p.max_instances));
   if (p.clique_work_limit < 1) throw Error("clique_work_limit must be >= 1");
   if (!p.viewpoint.allFinite()) throw Error("viewpoint must be finite");

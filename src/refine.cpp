@@ -4,19 +4,30 @@
 #include <Eigen/Cholesky>
 
 #include <cmath>
+#include <unordered_map>
 
 namespace binpose {
 namespace {
 
 bool facesSensor(const Vec3& p, const Vec3& n, const Vec3& viewpoint) { return n.dot(viewpoint - p) > 0.0f; }
 
+std::int64_t cellOf(float u, float v, float size) {
+  return (static_cast<std::int64_t>(std::floor(u / size)) << 32) ^ (static_cast<std::int64_t>(std::floor(v / size)) & 0xFFFFFFFF);
+}
+
 }  // namespace
 
 Pose refinePose(const Pose& pose, const Points& model_points, const Points& model_normals, const Points& scan,
                 const KdTree& scan_tree, const IcpParams& params) {
+  Vec3 model_centre = Vec3::Zero();
+  for (const Vec3& m : model_points) model_centre += m;
+  model_centre /= static_cast<float>(std::max<std::size_t>(1, model_points.size()));
   Pose current = pose;
   float gate = params.max_distance;
   for (int it = 0; it < params.iterations; ++it) {
+    // Linearised about the posed model's centre: a part's free motions (the spin of a body of
+    // revolution) then stay pure rotations about its own axis instead of leaking into t.
+    const Vec3 c = current * model_centre;
     Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
     Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
     int pairs = 0;
@@ -27,21 +38,24 @@ Pose refinePose(const Pose& pose, const Points& model_points, const Points& mode
       std::uint32_t j;
       float d2;
       if (!scan_tree.nearest(p, j, d2) || d2 > gate * gate) continue;
-      // residual n.(q - p) against the increment (omega, t): n.(omega x p + t) = (p x n).omega + n.t
+      // residual n.(q - p) against the step (omega, t): n.(omega x (p - c) + t)
       Eigen::Matrix<double, 6, 1> J;
-      J << p.cross(n).cast<double>(), n.cast<double>();
+      J << (p - c).cross(n).cast<double>(), n.cast<double>();
       const double r = n.dot(scan[j] - p);
       A += J * J.transpose();
       b += J * r;
       ++pairs;
     }
     if (pairs < 12) break;
+    A.diagonal().array() += 1e-6 * A.trace() / 6.0;  // damping: no step along a free direction
     const Eigen::Matrix<double, 6, 1> x = A.ldlt().solve(b);
     if (!x.allFinite()) break;
-    Pose step = Pose::Identity();
     const Eigen::Vector3d omega = x.head<3>();
-    if (omega.norm() > 0) step.linear() = Eigen::AngleAxisd(omega.norm(), omega.normalized()).toRotationMatrix().cast<float>();
-    step.translation() = x.tail<3>().cast<float>();
+    Eigen::Matrix3f R = Eigen::Matrix3f::Identity();
+    if (omega.norm() > 0) R = Eigen::AngleAxisd(omega.norm(), omega.normalized()).toRotationMatrix().cast<float>();
+    Pose step = Pose::Identity();  // p -> R (p - c) + c + t
+    step.linear() = R;
+    step.translation() = c - R * c + x.tail<3>().cast<float>();
     current = step * current;
     gate = std::max(params.min_distance, gate * 0.7f);
     if (omega.norm() < 1e-5 && x.tail<3>().norm() < 1e-4) break;
@@ -105,20 +119,43 @@ long SceneEvidence::cell(const Vec3& p, float& range) const {
 }
 
 Evidence SceneEvidence::evaluate(const Pose& pose, const Points& model_points, const Points& model_normals,
-                                 float tolerance) const {
-  Evidence e;
+                                 float tolerance, float model_spacing, std::vector<std::uint32_t>* support) const {
+  // Sensor-facing points of the posed model, with their range and direction in the image frame.
+  struct Facing { Vec3 p; float range, u, v; };
+  std::vector<Facing> facing;
   for (std::size_t i = 0; i < model_points.size(); ++i) {
     const Vec3 p = pose * model_points[i];
     if (!facesSensor(p, pose.linear() * model_normals[i], viewpoint_)) continue;
+    const Vec3 q = to_view_ * (p - viewpoint_);
+    if (q.z() <= 0) continue;
+    facing.push_back({p, q.norm(), q.x() / q.z(), q.y() / q.z()});
+  }
+  // The model's own z-buffer on cells of two sample spacings: a facing point with the model's
+  // surface clearly in front of it is hidden by the part itself and is not expected in the scan.
+  std::unordered_map<std::int64_t, float> front;
+  float cell = 0;
+  if (!facing.empty() && model_spacing > 0) {
+    float mean_range = 0;
+    for (const Facing& f : facing) mean_range += f.range;
+    cell = 2.0f * model_spacing / (mean_range / static_cast<float>(facing.size()));
+    for (const Facing& f : facing) {
+      const auto [it, inserted] = front.try_emplace(cellOf(f.u, f.v, cell), f.range);
+      if (!inserted) it->second = std::min(it->second, f.range);
+    }
+  }
+  Evidence e;
+  for (const Facing& f : facing) {
+    if (cell > 0 && front.at(cellOf(f.u, f.v, cell)) < f.range - 2 * model_spacing) continue;  // self-occluded
     ++e.facing;
     std::uint32_t j;
     float d2;
-    if (tree_.nearest(p, j, d2) && d2 <= tolerance * tolerance) {
+    if (tree_.nearest(f.p, j, d2) && d2 <= tolerance * tolerance) {
       ++e.supported;
+      if (support) support->push_back(j);
       continue;
     }
     float range;
-    const long c = cell(p, range);
+    const long c = this->cell(f.p, range);
     if (c >= 0 && nearest_[c] > range + 2 * tolerance && std::isfinite(nearest_[c])) ++e.contradicted;
   }
   return e;

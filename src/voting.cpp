@@ -34,7 +34,7 @@ Fourths fourthsOfHistogram(std::span<const std::uint32_t> histogram) {
   return {medianOf(histogram, 0, half), medianOf(histogram, n - half, half)};
 }
 
-std::vector<std::size_t> selectCandidates(std::span<const std::uint32_t> values) {
+std::vector<std::size_t> selectCandidates(std::span<const std::uint32_t> values, int keep) {
   if (values.empty()) return {};
   const std::uint32_t top = *std::max_element(values.begin(), values.end());
   std::vector<std::uint32_t> histogram(std::size_t{top} + 1, 0);
@@ -42,12 +42,23 @@ std::vector<std::size_t> selectCandidates(std::span<const std::uint32_t> values)
   const Fourths f = fourthsOfHistogram(histogram);
   if (!(top > f.upper + 3.0 * f.spread())) return {};  // eq. 11: no upper outlier, no candidate
   std::vector<std::size_t> picked;
+  if (keep <= 1) {
+    for (std::size_t i = 0; i < values.size(); ++i)
+      if (values[i] == top) picked.push_back(i);  // eq. 12: the maximum (ties all kept)
+    return picked;
+  }
+  const double limit = f.upper + 3.0 * f.spread();
   for (std::size_t i = 0; i < values.size(); ++i)
-    if (values[i] == top) picked.push_back(i);  // eq. 12: the maximum (ties all kept)
+    if (values[i] > limit) picked.push_back(i);
+  const auto cut = picked.begin() + std::min<std::ptrdiff_t>(keep, static_cast<std::ptrdiff_t>(picked.size()));
+  std::partial_sort(picked.begin(), cut, picked.end(), [&](std::size_t a, std::size_t b) {
+    return values[a] != values[b] ? values[a] > values[b] : a < b;
+  });
+  picked.erase(cut, picked.end());
   return picked;
 }
 
-Voter::Voter(const ModelDatabase& db) : db_(db), votes_(db.model().points.size(), 0) {}
+Voter::Voter(const ModelDatabase& db, int keep) : db_(db), keep_(keep), votes_(db.model().points.size(), 0) {}
 
 void Voter::vote(const Points& points, const Points& normals, std::span<const std::uint32_t> group,
                  std::vector<Correspondence>& out) {
@@ -67,7 +78,7 @@ void Voter::vote(const Points& points, const Points& normals, std::span<const st
     // A_k over the distinct model points of L_k, then eq. 10-12.
     values.clear();
     for (const auto id : touched_) values.push_back(votes_[id]);
-    for (const std::size_t i : selectCandidates(values)) out.push_back({k, touched_[i]});
+    for (const std::size_t i : selectCandidates(values, keep_)) out.push_back({k, touched_[i]});
     for (const auto id : touched_) votes_[id] = 0;
     touched_.clear();
   }

@@ -30,6 +30,12 @@ struct DetectionResult {
   std::size_t subgroups_run = 0;   ///< sub-groups that went through voting
 };
 
+/// A detection with the scan points that support it.
+struct Hypothesis {
+  Detection detection;
+  std::vector<std::uint32_t> support;  ///< sorted, distinct scan point indices
+};
+
 class Detector {
  public:
   /// `params` in absolute units (see scaledToModel); validated here.
@@ -43,9 +49,10 @@ class Detector {
  private:
   /// Share of the model's points that, posed by `a`, lie within 0.1 diameter of the model posed by `b`.
   [[nodiscard]] float overlap(const Pose& a, const Pose& b) const;
-  /// Keeps each detection (best first) unless its model mostly overlaps a better one's: two
-  /// poses of one object (a near-symmetric flip found first, say) are reported once.
-  [[nodiscard]] std::vector<Detection> suppressOverlaps(const std::vector<Detection>& ranked) const;
+  /// Best first, keeps a detection unless it is another pose of an object already kept: over a
+  /// quarter of its supporting scan points are claimed (each scan point belongs to one object),
+  /// or its model mostly overlaps a kept one's (a near-symmetric flip, say).
+  [[nodiscard]] std::vector<Detection> suppressDuplicates(std::vector<Hypothesis> hypotheses, std::size_t scan_size) const;
 
   const ModelDatabase& db_;
   DetectionParams params_;

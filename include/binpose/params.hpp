@@ -27,19 +27,21 @@ struct DetectionParams {
   Subsampling subsampling = Subsampling::Voxel;
 
   // --- beyond the thesis (each switchable; the thesis preset turns them off) ----------------
+  int candidates_per_point = 1;   ///< model points kept per scene point: 1 is eq. 12's maximum; about 8 for
+                                  ///< bodies of revolution, whose symmetric points share their votes
   bool refine = true;             ///< point-to-plane ICP of each pose against the full scan
   int icp_iterations = 20;
-  float icp_max_distance = 3.0f;  ///< ICP correspondence gate at the start, mm (halves as it converges)
+  float icp_max_distance = 3.0f;  ///< ICP correspondence gate at the start, mm (shrinks as it converges)
   bool verify = true;             ///< score = share of the posed model's sensor-facing points the scan supports
   float verify_tolerance = 1.0f;  ///< distance within which a scan point supports a model point, mm
   float min_score = 0.15f;        ///< detections scoring less are rejected (verify only)
   /// Scene points are removed (5.2.6) only after a detection scoring at least this; a less
   /// certain one leaves them for later sub-groups, and overlap suppression keeps the better pose.
   /// 0 removes after every detection, as the thesis does.
-  float removal_score = 0.7f;
+  float removal_score = 0.8f;
 
   // --- limits and determinism --------------------------------------------------------------
-  int max_instances = 0;              ///< stop after this many detections (0: no limit)
+  int max_instances = 0;  ///< stop after this many confident detections, report at most this many (0: no limit)
   std::uint64_t clique_work_limit = 200000;  ///< branch-and-bound nodes per clique search
   std::uint64_t seed = 1;             ///< random sub-sampling seed
   Vec3 viewpoint = Vec3::Zero();      ///< sensor origin in the scan's frame (normals face it)

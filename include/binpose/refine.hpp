@@ -23,7 +23,7 @@ Pose refinePose(const Pose& pose, const Points& model_points, const Points& mode
 
 /// What the scan says about a posed model's sensor-facing points.
 struct Evidence {
-  int facing = 0;      ///< model points whose normal faces the sensor
+  int facing = 0;      ///< model points facing the sensor and not hidden by the part itself
   int supported = 0;   ///< ... with a scan point within the tolerance
   int contradicted = 0;  ///< ... where the scan sees a surface clearly behind them (free space)
   /// (supported - contradicted) / facing, in [0, 1]: near 1 for a fully visible, correct pose.
@@ -38,8 +38,11 @@ struct Evidence {
 class SceneEvidence {
  public:
   SceneEvidence(const Points& scan, const KdTree& tree, const Vec3& viewpoint);
+  /// `model_spacing`: the model's sample spacing, mm, for its self-occlusion test (0: none).
+  /// The scan points that support the pose are appended to `support` when it is given.
   [[nodiscard]] Evidence evaluate(const Pose& pose, const Points& model_points, const Points& model_normals,
-                                  float tolerance) const;
+                                  float tolerance, float model_spacing,
+                                  std::vector<std::uint32_t>* support = nullptr) const;
 
  private:
   /// Range-image cell of a point, or -1 outside the image.

@@ -26,19 +26,23 @@ Fourths fourthsOfHistogram(std::span<const std::uint32_t> histogram);
 
 /// Selection of eq. 11-12 on accumulator values: the indices whose value is an upper outlier
 /// (> x_u + 3 xi_s) and equals the largest value; empty when there is no outlier.
-std::vector<std::size_t> selectCandidates(std::span<const std::uint32_t> values);
+/// With `keep` > 1 (beyond the thesis): the `keep` highest upper outliers instead of only the
+/// maximum (ties at the cut by index), for parts whose symmetric points share their votes.
+std::vector<std::size_t> selectCandidates(std::span<const std::uint32_t> values, int keep = 1);
 
 /// Votes for the model points of every point of a sub-group (eq. 8-12). Holds the accumulator
 /// between calls so nothing is allocated per scene point; one Voter per thread.
 class Voter {
  public:
-  explicit Voter(const ModelDatabase& db);
+  /// `keep`: candidates per scene point (1: the thesis's maximum; see selectCandidates).
+  explicit Voter(const ModelDatabase& db, int keep = 1);
   /// Appends to `out` the candidate pairs of each point of `group` (indices into points/normals).
   void vote(const Points& points, const Points& normals, std::span<const std::uint32_t> group,
             std::vector<Correspondence>& out);
 
  private:
   const ModelDatabase& db_;
+  int keep_;
   std::vector<std::uint16_t> votes_;      ///< A_k, one counter per model point
   std::vector<std::uint32_t> touched_;    ///< model points with a vote, for cheap clearing
   std::vector<std::uint32_t> histogram_;  ///< accumulator values -> count
