@@ -7,6 +7,8 @@
 #include "synthetic.hpp"
 
 #include <fstream>
+
+#include <tbb/global_control.h>
 #include "test_util.hpp"
 
 using namespace binpose;
@@ -73,6 +75,29 @@ TEST(Detector, FindsEveryCopyAtKnownPoses) {
   std::printf("scan %zu points, sampled %zu, %zu sub-groups (%zu run), %.1f ms (pre %.1f, match %.1f, refine %.1f)\n",
               result.scene_points, result.sampled_points, result.subgroups, result.subgroups_run, result.timing.total_ms,
               result.timing.preprocess_ms, result.timing.match_ms, result.timing.refine_ms);
+}
+
+TEST(Detector, SameResultWhateverTheThreadCount) {
+  REQUIRE_DATA("ipd_parts/models/obj_000000.ply");
+  const Mesh mesh = readMesh(test::dataPath("ipd_parts/models/obj_000000.ply"));
+  Rng rng(5);
+  const std::vector<Pose> truth{test::randomPose(rng, Vec3(-60, 0, 500)), test::randomPose(rng, Vec3(60, 0, 500))};
+  const PointCloud scan = test::renderCopies(mesh, truth, {}, [](std::size_t, const Vec3&) { return true; });
+  for (const char* preset : {"default", "thesis"}) {
+    const Detector detector(ipdDatabase(), scaledToModel(presetByName(preset), ipdDatabase().model().diameter));
+    DetectionResult one;
+    {
+      tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
+      one = detector.detect(scan);
+    }
+    const DetectionResult many = detector.detect(scan);
+    ASSERT_EQ(one.detections.size(), many.detections.size()) << preset;
+    ASSERT_FALSE(one.detections.empty()) << preset;
+    for (std::size_t i = 0; i < one.detections.size(); ++i) {
+      EXPECT_TRUE(one.detections[i].pose.matrix() == many.detections[i].pose.matrix()) << preset << " detection " << i;
+      EXPECT_EQ(one.detections[i].score, many.detections[i].score);
+    }
+  }
 }
 
 TEST(Detector, EmptySceneGivesNoDetection) {
