@@ -1,10 +1,12 @@
 // binpose command-line front end.
 #include <binpose/detector.hpp>
+#include <binpose/evaluation.hpp>
 #include <binpose/geometry.hpp>
 #include <binpose/io.hpp>
 #include <binpose/model.hpp>
 #include <binpose/model_database.hpp>
 #include <binpose/shapes.hpp>
+#include <binpose/simulation.hpp>
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
@@ -245,6 +247,158 @@ int runDetect(const DetectOptions& o) {
   return 0;
 }
 
+struct SimulateOptions {
+  std::string model = "builtin:cap", out, units = "mm", model_info;
+  int obj_id = 1;
+  std::vector<float> bin;
+  binpose::SimulationParams params;
+};
+
+void addSimulate(CLI::App& app, SimulateOptions& o) {
+  CLI::App* s = app.add_subcommand("simulate", "Drop copies of a part into a bin and render a depth sensor's view (thesis 7.1.2)");
+  s->add_option("--model", o.model, "Mesh (PLY/STL/OBJ) or builtin:cap|sphere|box")->capture_default_str();
+  s->add_option("--instances", o.params.instances, "Copies dropped into the bin")->capture_default_str();
+  s->add_option("--seed", o.params.seed, "Seed of the drop and the sensor noise")->capture_default_str();
+  s->add_option("--out", o.out, "Folder for depth.png, camera.json, scene.ply, ground_truth.json and BOP files")->required();
+  s->add_option("--units", o.units, "Length unit of the model file: mm or m")->check(CLI::IsMember({"mm", "m"}))->capture_default_str();
+  s->add_option("--model-info", o.model_info, "BOP models_info.json giving the part's symmetries");
+  s->add_option("--obj-id", o.obj_id, "Entry of --model-info")->capture_default_str();
+  s->add_option("--width", o.params.sensor.width, "Image width, px")->capture_default_str();
+  s->add_option("--height", o.params.sensor.height, "Image height, px")->capture_default_str();
+  s->add_option("--fx", o.params.sensor.fx, "Focal length, px (fy = fx; principal point at the centre)")->capture_default_str();
+  s->add_option("--distance", o.params.sensor.distance, "Sensor to bin floor, mm")->capture_default_str();
+  s->add_option("--noise", o.params.sensor.noise_sigma, "Depth noise at 500 mm (1 sigma), mm")->capture_default_str();
+  s->add_option("--bin", o.bin, "Bin inside length width height, mm (default 200 200 120)")->expected(3);
+}
+
+/// BOP models_info entry (diameter, symmetries) of the simulated part, as JSON text.
+std::string modelInfo(const SimulateOptions& o, const binpose::Mesh& mesh) {
+  if (!o.model_info.empty()) {
+    std::ifstream in(o.model_info);
+    const auto j = nlohmann::json::parse(in, nullptr, false);
+    const std::string key = std::to_string(o.obj_id);
+    if (j.is_discarded() || !j.contains(key)) throw binpose::Error(fmt::format("{}: no entry '{}'", o.model_info, key));
+    return j[key].dump();
+  }
+  nlohmann::json info{{"diameter", binpose::diameter(mesh.vertices)}};
+  info["symmetries_discrete"] = nlohmann::json::array();
+  info["symmetries_continuous"] = nlohmann::json::array();
+  if (o.model == "builtin:cap" || o.model == "builtin:sphere")  // bodies of revolution about z
+    info["symmetries_continuous"].push_back({{"axis", {0, 0, 1}}, {"offset", {0, 0, 0}}});
+  return info.dump();
+}
+
+int runSimulate(SimulateOptions o) {
+  const auto t0 = Clock::now();
+  if (o.bin.size() == 3) o.params.bin.inner = binpose::Vec3(o.bin[0], o.bin[1], o.bin[2]);
+  o.params.sensor.fy = o.params.sensor.fx;
+  o.params.sensor.cx = (o.params.sensor.width - 1) / 2.0;
+  o.params.sensor.cy = (o.params.sensor.height - 1) / 2.0;
+  const binpose::ModelFile file = loadModel(o.model, binpose::unitScale(binpose::parseUnits(o.units)));
+  if (!file.is_mesh) throw binpose::Error(fmt::format("{}: the simulator needs a mesh, not a point cloud", o.model));
+  const binpose::SimulatedScene scene = binpose::simulateBin(file.mesh, o.params);
+  binpose::writeScene(o.out, scene, o.model, modelInfo(o, file.mesh));
+  fmt::print("{} copies of {} in a {}x{}x{} mm bin; sensor {}x{} px at {} mm\n", o.params.instances, o.model,
+             o.params.bin.inner.x(), o.params.bin.inner.y(), o.params.bin.inner.z(), o.params.sensor.width,
+             o.params.sensor.height, o.params.sensor.distance);
+  fmt::print("{:>4}  {:>27}  {:>8}  {:>7}  {:>11}\n", "copy", "position in camera (mm)", "surface", "pixels", "visib_fract");
+  for (std::size_t i = 0; i < scene.instances.size(); ++i) {
+    const auto& inst = scene.instances[i];
+    const binpose::Vec3 t = inst.pose.translation();
+    fmt::print("{:>4}  {:>8.1f} {:>8.1f} {:>9.1f}  {:>7.0f}%  {:>7}  {:>10.0f}%\n", i, t.x(), t.y(), t.z(),
+               100 * inst.visible_fraction, inst.visible_pixels, 100 * inst.visib_fract);
+  }
+  fmt::print("scan: {} points; written to {} in {:.2f} s\n", scene.cloud.size(), o.out, secondsSince(t0));
+  return 0;
+}
+
+struct EvalOptions {
+  std::string truth, result, model, out, units = "mm", models_info, obj_id = "1";
+  float threshold = 0.1f;
+};
+
+void addEval(CLI::App& app, EvalOptions& o) {
+  CLI::App* e = app.add_subcommand("eval", "Score detections against a simulated scene's ground truth (thesis 7.1.3)");
+  e->add_option("--truth", o.truth, "Folder written by binpose simulate")->required();
+  e->add_option("--result", o.result, "result.json written by binpose detect")->required();
+  e->add_option("--model", o.model, "The part's mesh (or builtin:NAME), as simulated")->required();
+  e->add_option("--units", o.units, "Length unit of the model file")->check(CLI::IsMember({"mm", "m"}))->capture_default_str();
+  e->add_option("--models-info", o.models_info, "BOP models_info.json with the symmetries (default: the truth folder's)");
+  e->add_option("--obj-id", o.obj_id, "Entry of models_info.json")->capture_default_str();
+  e->add_option("--threshold", o.threshold, "A detection is correct when ADD-S < threshold x diameter")->capture_default_str();
+  e->add_option("--out", o.out, "Write the evaluation as JSON here");
+}
+
+/// Poses and total time of a result.json.
+std::pair<std::vector<binpose::Pose>, double> readResult(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw binpose::Error(fmt::format("{}: cannot open result", path));
+  const auto j = nlohmann::json::parse(in, nullptr, false);
+  if (j.is_discarded() || !j.contains("detections")) throw binpose::Error(fmt::format("{}: not a binpose result", path));
+  std::vector<binpose::Pose> poses;
+  try {
+    for (const auto& d : j["detections"]) {
+      Eigen::Matrix4f T;
+      for (int r = 0; r < 4; ++r)
+        for (int c = 0; c < 4; ++c) T(r, c) = d.at("pose").at(r).at(c).get<float>();
+      binpose::Pose p = binpose::Pose::Identity();
+      p.matrix() = T;
+      poses.push_back(p);
+    }
+  } catch (const nlohmann::json::exception& e) {
+    throw binpose::Error(fmt::format("{}: malformed pose ({})", path, e.what()));
+  }
+  return {poses, j.contains("timing_ms") ? j["timing_ms"].value("total", 0.0) : 0.0};
+}
+
+nlohmann::json reportJson(const binpose::EvaluationReport& r) {
+  nlohmann::json j{{"recall", r.recall}, {"precision", r.precision}, {"recall_over_half_visible", r.recall_over_half_visible},
+                   {"detections", r.detections}, {"matched", r.matched}, {"instances_total", r.instances.size()},
+                   {"mean_centroid_error_mm", r.mean_centroid_mm}, {"mean_angle_error_deg", r.mean_angle_deg},
+                   {"mean_add_s_mm", r.mean_add_s_mm}, {"mean_mssd_mm", r.mean_mssd_mm}, {"total_ms", r.total_ms},
+                   {"ms_per_object", r.ms_per_object}};
+  j["recall_by_visible_fraction"] = nlohmann::json::array();
+  for (int b = 0; b < 10; ++b)
+    j["recall_by_visible_fraction"].push_back({{"from", b / 10.0}, {"to", (b + 1) / 10.0}, {"instances", r.visible_bin_total[b]},
+                                               {"found", r.visible_bin_found[b]}});
+  j["instances"] = nlohmann::json::array();
+  for (const auto& i : r.instances)
+    j["instances"].push_back({{"truth", i.truth}, {"detection", i.detection}, {"visible_fraction", i.visible_fraction}, {"visib_fract", i.visib_fract},
+                              {"centroid_error_mm", i.errors.centroid_mm}, {"angle_error_deg", i.errors.angle_deg},
+                              {"add_s_mm", i.errors.add_s_mm}, {"mssd_mm", i.errors.mssd_mm}});
+  return j;
+}
+
+int runEval(const EvalOptions& o) {
+  const binpose::GroundTruth truth = binpose::readGroundTruth(o.truth);
+  const auto [poses, total_ms] = readResult(o.result);
+  const binpose::ModelFile file = loadModel(o.model, binpose::unitScale(binpose::parseUnits(o.units)));
+  if (!file.is_mesh) throw binpose::Error(fmt::format("{}: evaluation needs the part's mesh", o.model));
+  const std::string info = o.models_info.empty() ? o.truth + "/models_info.json" : o.models_info;
+  const binpose::EvalModel model = binpose::makeEvalModel(file.mesh, binpose::readSymmetries(info, o.obj_id));
+  const binpose::EvaluationReport r = binpose::evaluate(truth, poses, total_ms, model, o.threshold);
+  fmt::print("{:>4}  {:>8}  {:>6}  {:>5}  {:>10}  {:>9}  {:>8}  {:>8}\n", "copy", "surface", "visib", "det", "centroid", "angle",
+             "ADD-S", "MSSD");
+  for (const auto& i : r.instances) {
+    if (i.detection < 0) {
+      fmt::print("{:>4}  {:>7.0f}%  {:>5.0f}%  {:>5}\n", i.truth, 100 * i.visible_fraction, 100 * i.visib_fract, "-");
+      continue;
+    }
+    fmt::print("{:>4}  {:>7.0f}%  {:>5.0f}%  {:>5}  {:>7.3f} mm  {:>7.3f} d  {:>5.3f} mm  {:>5.3f} mm\n", i.truth,
+               100 * i.visible_fraction, 100 * i.visib_fract, i.detection + 1, i.errors.centroid_mm, i.errors.angle_deg, i.errors.add_s_mm, i.errors.mssd_mm);
+  }
+  fmt::print("recall {:.1f}% ({} of {}; {:.1f}% of those with visib_fract > 50%), precision {:.1f}% ({} detections)\n",
+             100 * r.recall, r.matched, r.instances.size(), 100 * r.recall_over_half_visible, 100 * r.precision, r.detections);
+  fmt::print("mean centroid error {:.3f} mm, angle {:.3f} deg, ADD-S {:.3f} mm, MSSD {:.3f} mm; {:.1f} ms per object found\n",
+             r.mean_centroid_mm, r.mean_angle_deg, r.mean_add_s_mm, r.mean_mssd_mm, r.ms_per_object);
+  if (!o.out.empty()) {
+    std::ofstream out(o.out);
+    out << reportJson(r).dump(1) << "\n";
+    if (!out) throw binpose::Error(fmt::format("{}: cannot write", o.out));
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -254,6 +408,10 @@ int main(int argc, char** argv) {
   addTrain(app, train);
   DetectOptions detect;
   addDetect(app, detect);
+  SimulateOptions simulate;
+  addSimulate(app, simulate);
+  EvalOptions eval;
+  addEval(app, eval);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -262,6 +420,8 @@ int main(int argc, char** argv) {
   try {
     if (app.got_subcommand("train")) return runTrain(train);
     if (app.got_subcommand("detect")) return runDetect(detect);
+    if (app.got_subcommand("simulate")) return runSimulate(simulate);
+    if (app.got_subcommand("eval")) return runEval(eval);
   } catch (const binpose::Error& e) {
     fmt::print(stderr, "error: {}\n", e.what());
     return 2;

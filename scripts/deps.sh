@@ -3,7 +3,8 @@
 set -euo pipefail
 packages=(cmake ninja-build g++ pkg-config
           libeigen3-dev libnanoflann-dev libtbb-dev libcli11-dev nlohmann-json3-dev libfmt-dev
-          libassimp-dev libpng-dev zlib1g-dev liblzf-dev libgtest-dev libbenchmark-dev)
+          libassimp-dev libpng-dev zlib1g-dev liblzf-dev libgtest-dev libbenchmark-dev
+          libbullet-dev libembree-dev gnuplot-nox)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -32,6 +32,18 @@ bool bounds(const Points& points, Vec3& lo, Vec3& hi) {
   return true;
 }
 
+Vec3 surfaceCentroid(const Mesh& mesh) {
+  Vec3 sum = Vec3::Zero();
+  double area = 0;
+  for (const auto& f : mesh.faces) {
+    const Vec3 &a = mesh.vertices[f[0]], &b = mesh.vertices[f[1]], &c = mesh.vertices[f[2]];
+    const float w = 0.5f * (b - a).cross(c - a).norm();
+    sum += w * (a + b + c) / 3.0f;
+    area += w;
+  }
+  return area > 0 ? Vec3(sum / static_cast<float>(area)) : Vec3::Zero();
+}
+
 void weldVertices(Mesh& mesh) {
   std::map<std::array<float, 3>, int> index;
   std::vector<int> remap(mesh.vertices.size());

@@ -32,6 +32,9 @@ float diameter(const Points& points);
 /// Axis-aligned bounds; false when `points` is empty.
 bool bounds(const Points& points, Vec3& lo, Vec3& hi);
 
+/// Area-weighted centroid of a mesh's surface (exact; on the axis of a body of revolution).
+Vec3 surfaceCentroid(const Mesh& mesh);
+
 /// Merges vertices at exactly the same position (STL repeats every corner), so that faces share
 /// their corners and normals can be smoothed across edges.
 void weldVertices(Mesh& mesh);
