@@ -7,6 +7,7 @@
 #include <binpose/model_database.hpp>
 #include <binpose/shapes.hpp>
 #include <binpose/simulation.hpp>
+#include <binpose/sweep.hpp>
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
@@ -280,12 +281,7 @@ std::string modelInfo(const SimulateOptions& o, const binpose::Mesh& mesh) {
     if (j.is_discarded() || !j.contains(key)) throw binpose::Error(fmt::format("{}: no entry '{}'", o.model_info, key));
     return j[key].dump();
   }
-  nlohmann::json info{{"diameter", binpose::diameter(mesh.vertices)}};
-  info["symmetries_discrete"] = nlohmann::json::array();
-  info["symmetries_continuous"] = nlohmann::json::array();
-  if (o.model == "builtin:cap" || o.model == "builtin:sphere")  // bodies of revolution about z
-    info["symmetries_continuous"].push_back({{"axis", {0, 0, 1}}, {"offset", {0, 0, 0}}});
-  return info.dump();
+  return binpose::defaultModelInfo(o.model, mesh);
 }
 
 int runSimulate(SimulateOptions o) {
@@ -399,6 +395,51 @@ int runEval(const EvalOptions& o) {
   return 0;
 }
 
+struct SweepOptions {
+  binpose::SweepSettings settings;
+  std::vector<double> r, rho_sub, eta, e_gmax, C_n, d_dist, p_d;
+};
+
+void addSweep(CLI::App& app, SweepOptions& o) {
+  CLI::App* w = app.add_subcommand("sweep", "Sweep parameters over simulated bins: CSV and the thesis's plots (Tables 1-7)");
+  w->add_option("--model", o.settings.model, "Mesh or builtin:NAME")->capture_default_str();
+  w->add_option("--preset", o.settings.preset, "default or thesis")->check(CLI::IsMember({"default", "thesis"}))->capture_default_str();
+  w->add_option("--scenes", o.settings.scenes, "Simulated bins")->capture_default_str();
+  w->add_option("--instances", o.settings.instances, "Parts per bin")->capture_default_str();
+  w->add_option("--seed", o.settings.seed, "Seed of the first bin")->capture_default_str();
+  w->add_option("--out", o.settings.out, "Output folder")->required();
+  w->add_option("--r", o.r, "Sampling radii r, mm (comma-separated)")->delimiter(',');
+  w->add_option("--rho-sub", o.rho_sub, "Densities rho_sub, points/mm^2")->delimiter(',');
+  w->add_option("--eta", o.eta, "Grid spacings eta, mm")->delimiter(',');
+  w->add_option("--e-gmax", o.e_gmax, "Consistency limits e_gmax, mm")->delimiter(',');
+  w->add_option("--c-n", o.C_n, "Smallest cliques C_n")->delimiter(',');
+  w->add_option("--d-dist", o.d_dist, "Distance steps d_dist, mm (one database each)")->delimiter(',');
+  w->add_option("--overlap", o.p_d, "Bin overlaps p_d (one database each)")->delimiter(',');
+}
+
+int runSweepCommand(const SweepOptions& o) {
+  binpose::SweepGrid grid;
+  std::vector<std::string> order;  // plotted against the first, a curve per value of the second
+  for (const auto& [name, values] : std::vector<std::pair<std::string, const std::vector<double>*>>{
+           {"r", &o.r}, {"rho_sub", &o.rho_sub}, {"e_gmax", &o.e_gmax}, {"C_n", &o.C_n}, {"eta", &o.eta},
+           {"d_dist", &o.d_dist}, {"p_d", &o.p_d}})
+    if (!values->empty()) {
+      grid[name] = *values;
+      order.push_back(name);
+    }
+  if (grid.empty()) throw binpose::Error("sweep: give at least one parameter to sweep (for example --r 20,25,30)");
+  const auto t0 = Clock::now();
+  const auto rows = binpose::runSweep(o.settings, grid, [&](int done, int total) {
+    const int width = 40, filled = width * done / total;
+    fmt::print(stderr, "\r[{}{}] {}/{} runs, {:.0f} s", std::string(filled, '#'), std::string(width - filled, '.'), done, total,
+               secondsSince(t0));
+    if (done == total) fmt::print(stderr, "\n");
+  });
+  fmt::print("{} runs; {}/results.csv, {}/instances.csv\n", rows.size(), o.settings.out, o.settings.out);
+  for (const auto& png : binpose::plotSweep(o.settings.out, rows, order)) fmt::print("plot: {}\n", png);
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -412,6 +453,8 @@ int main(int argc, char** argv) {
   addSimulate(app, simulate);
   EvalOptions eval;
   addEval(app, eval);
+  SweepOptions sweep;
+  addSweep(app, sweep);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -422,6 +465,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("detect")) return runDetect(detect);
     if (app.got_subcommand("simulate")) return runSimulate(simulate);
     if (app.got_subcommand("eval")) return runEval(eval);
+    if (app.got_subcommand("sweep")) return runSweepCommand(sweep);
   } catch (const binpose::Error& e) {
     fmt::print(stderr, "error: {}\n", e.what());
     return 2;

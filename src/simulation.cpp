@@ -324,6 +324,14 @@ void writeScene(const std::string& dir, const SimulatedScene& scene, const std::
   if (!model_info.empty()) writeJson(dir + "/models_info.json", {{"1", nlohmann::json::parse(model_info)}});
 }
 
+std::string defaultModelInfo(const std::string& model_name, const Mesh& mesh) {
+  nlohmann::json info{{"diameter", diameter(mesh.vertices)}, {"symmetries_discrete", nlohmann::json::array()},
+                      {"symmetries_continuous", nlohmann::json::array()}};
+  if (model_name == "builtin:cap" || model_name == "builtin:sphere")  // bodies of revolution about z
+    info["symmetries_continuous"].push_back({{"axis", {0, 0, 1}}, {"offset", {0, 0, 0}}});
+  return info.dump();
+}
+
 GroundTruth readGroundTruth(const std::string& dir) {
   const std::string path = dir + "/ground_truth.json";
   std::ifstream in(path);

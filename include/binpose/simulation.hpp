@@ -68,6 +68,10 @@ SimulatedScene simulateBin(const Mesh& mesh, const SimulationParams& params);
 void writeScene(const std::string& dir, const SimulatedScene& scene, const std::string& model_name,
                 const std::string& model_info);
 
+/// A BOP models_info.json entry for a part: its diameter, and for builtin:cap and builtin:sphere
+/// their continuous symmetry about z (other parts: none declared).
+std::string defaultModelInfo(const std::string& model_name, const Mesh& mesh);
+
 /// A scene written by writeScene: its instances (poses, visible fractions) and the scan.
 struct GroundTruth {
   std::vector<SimulatedInstance> instances;
