@@ -5,6 +5,7 @@
 #include <binpose/io.hpp>
 #include <binpose/model.hpp>
 #include <binpose/model_database.hpp>
+#include <binpose/render.hpp>
 #include <binpose/shapes.hpp>
 #include <binpose/simulation.hpp>
 #include <binpose/sweep.hpp>
@@ -98,7 +99,7 @@ int runTrain(const TrainOptions& o) {
 }
 
 struct DetectOptions {
-  std::string model, scene, intrinsics, image_id, out, preset = "default", params_file;
+  std::string model, scene, intrinsics, image_id, out, preset = "default", params_file, render, export_ply;
   std::string units = "mm", model_units = "mm";
   std::optional<int> max_instances, C_n, k_normals, candidates;
   std::optional<float> r, rho_sub, eta, e_gmax, sigma_dist, min_score;
@@ -116,6 +117,8 @@ void addDetect(CLI::App& app, DetectOptions& o) {
   d->add_option("--intrinsics", o.intrinsics, "BOP camera.json or scene_camera.json for a depth PNG");
   d->add_option("--image-id", o.image_id, "Entry of scene_camera.json (default: the first)");
   d->add_option("--out", o.out, "Write the detections as JSON here");
+  d->add_option("--render", o.render, "Draw the scan with the detections, ranked, into this PNG");
+  d->add_option("--export-ply", o.export_ply, "Write the scan and the posed models (coloured) into this PLY");
   d->add_option("--max-instances", o.max_instances, "Stop after N detections (0: no limit)");
   d->add_option("--preset", o.preset, "Parameter preset: default, or thesis (chapter 5 as written)")
       ->check(CLI::IsMember({"default", "thesis"}))->capture_default_str();
@@ -239,6 +242,14 @@ int runDetect(const DetectOptions& o) {
   }
   fmt::print("{} detections in {:.1f} ms (preprocess {:.1f}, match {:.1f}, refine {:.1f})\n", r.detections.size(),
              r.timing.total_ms, r.timing.preprocess_ms, r.timing.match_ms, r.timing.refine_ms);
+  if (!o.render.empty()) {
+    binpose::renderDetections(o.render, scan, r.detections, db.model().points, db.model().normals, params.viewpoint);
+    fmt::print("picture: {}\n", o.render);
+  }
+  if (!o.export_ply.empty()) {
+    binpose::exportDetectionsPly(o.export_ply, scan, r.detections, db.model().points);
+    fmt::print("3D view: {}\n", o.export_ply);
+  }
   if (!o.out.empty()) {
     std::ofstream out(o.out);
     out << resultJson(r, params) << "\n";
