@@ -1,17 +1,20 @@
 #!/usr/bin/env bash
-# The demo: installs dependencies, builds, and trains feature databases for the built-in cap
-# and, when ../shared/data is present, for two real parts. Databases go to out/.
+# The demo: installs dependencies, builds, then on the built-in bottle cap runs
+#   simulate (16 caps dropped into a bin, seen by a depth sensor) -> train -> detect -> eval
+# and prints the summary and the path of the rendered picture. Everything goes to out/demo/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/deps.sh
 scripts/build.sh build > /dev/null
-mkdir -p out
-echo "== Built-in bottle cap (thesis-like 60 mm part)"
-build/binpose train --model builtin:cap --out out/cap.bpdb
-data=../shared/data
-if [ -d "$data" ]; then
-  echo; echo "== UWA parasaurolophus (real scan-based mesh, non-unit normals)"
-  build/binpose train --model "$data/uwa/parasaurolophus_6700.ply" --out out/parasaurolophus.bpdb
-  echo; echo "== IPD industrial part obj_000008"
-  build/binpose train --model "$data/ipd_parts/models/obj_000008.ply" --out out/ipd_obj8.bpdb
-fi
+out=out/demo
+mkdir -p "$out"
+echo "== simulate: 16 built-in caps in a bin"
+build/binpose simulate --model builtin:cap --instances 16 --seed 7 --out "$out/bin"
+echo; echo "== train"
+build/binpose train --model builtin:cap --out "$out/cap.bpdb"
+echo; echo "== detect (bodies of revolution: 8 candidates per scene point)"
+build/binpose detect --model "$out/cap.bpdb" --scene "$out/bin/depth.png" --intrinsics "$out/bin/camera.json" \
+  --candidates-per-point 8 --out "$out/result.json" --render "$out/detections.png" --export-ply "$out/detections.ply"
+echo; echo "== eval against the exact ground truth"
+build/binpose eval --truth "$out/bin" --result "$out/result.json" --model builtin:cap --out "$out/eval.json"
+echo; echo "picture of the detections: $out/detections.png"
