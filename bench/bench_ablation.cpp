@@ -11,8 +11,6 @@
 
 #include <algorithm>
 #include <cstdio>
-#include <cstdlib>
-#include <cstring>
 #include <string>
 
 using namespace binpose;
@@ -59,22 +57,6 @@ int main(int argc, char** argv) {
   p = defaultPreset();
   p.candidates_per_point = 8;
   variants.push_back({"default + 8 candidates per point", p});
-  if (const char* extra = std::getenv("ABL_CANDIDATES"))  // e.g. "2,4": more default rows
-    for (std::string rest = extra; !rest.empty();) {
-      const std::size_t comma = rest.find(',');
-      DetectionParams q = defaultPreset();
-      q.candidates_per_point = std::stoi(rest.substr(0, comma));
-      variants.push_back({strdup(("default, candidates_per_point " + rest.substr(0, comma)).c_str()), q});
-      rest = comma == std::string::npos ? "" : rest.substr(comma + 1);
-    }
-  if (const char* extra = std::getenv("ABL_REMOVAL_SCORES"))  // e.g. "0.8,0.9": more default rows
-    for (std::string rest = extra; !rest.empty();) {
-      const std::size_t comma = rest.find(',');
-      DetectionParams q = defaultPreset();
-      q.removal_score = std::stof(rest.substr(0, comma));
-      variants.push_back({strdup(("default, removal_score " + rest.substr(0, comma)).c_str()), q});
-      rest = comma == std::string::npos ? "" : rest.substr(comma + 1);
-    }
 
   std::printf("model %s, %.1f mm; %d scenes x %d copies\n", argv[1], model.diameter, scenes, copies);
   std::printf("%-40s %7s %6s %9s %9s %9s\n", "variant", "recall", "false", "cent mm", "angle deg", "ms/scene");
@@ -103,17 +85,10 @@ int main(int argc, char** argv) {
         }
         if (best < 0) {
           ++wrong;
-          if (std::getenv("ABL_DEBUG")) {
-            float nearest = 1e9f; int nt = -1;
-            for (std::size_t t = 0; t < truth.size(); ++t) { float e = (d.pose * centroid - truth[t] * centroid).norm(); if (e < nearest) { nearest = e; nt = int(t);} }
-            std::printf("  false: scene %d score %.2f |C| %d nearest copy %d at %.1f mm (used %d) angle %.1f\n", s, d.score, d.correspondences, nt, nearest, nt >= 0 ? used[nt] : -1,
-                        Eigen::AngleAxisf(d.pose.linear().transpose() * truth[nt].linear()).angle() * 180.0 / M_PI);
-          }
           continue;
         }
         used[best] = 1;
         ++correct;
-        if (std::getenv("ABL_DEBUG")) std::printf("  right: scene %d score %.2f |C| %d copy %d\n", s, d.score, d.correspondences, best);
         cent.push_back(best_d);
         ang.push_back(Eigen::AngleAxisf(d.pose.linear().transpose() * truth[best].linear()).angle() * 180.0 / M_PI);
       }
