@@ -21,23 +21,11 @@
 #include <sstream>
 #include <numbers>
 #include <optional>
-#include <string_view>
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
 double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
-constexpr std::string_view kBuiltin = "builtin:";
-
-/// A model file, or a built-in part named "builtin:NAME" (mm).
-binpose::ModelFile loadModel(const std::string& spec, double scale) {
-  if (spec.rfind(kBuiltin, 0) != 0) return binpose::readModelFile(spec, scale);
-  binpose::ModelFile file;
-  file.is_mesh = true;
-  file.mesh = binpose::builtinPart(spec.substr(kBuiltin.size()));
-  return file;
-}
 
 struct TrainOptions {
   std::string model, out, units = "mm";
@@ -68,7 +56,7 @@ int runTrain(const TrainOptions& o) {
   params.num_points = o.points;
   params.rho_model = o.rho_model;
   params.seed = o.seed;
-  const binpose::ModelFile file = loadModel(o.model, scale);
+  const binpose::ModelFile file = binpose::readModelOrBuiltin(o.model, scale);
   const binpose::OrientedModel model =
       file.is_mesh ? binpose::prepareModel(file.mesh, params) : binpose::prepareModel(file.cloud, params);
   const double t_sample = secondsSince(t0);
@@ -178,7 +166,7 @@ binpose::ModelDatabase loadOrTrain(const DetectOptions& o) {
   if (binpose::ModelDatabase::isDatabaseFile(o.model)) return binpose::ModelDatabase::load(o.model);
   binpose::ModelParams mp;
   mp.num_points = o.model_points;
-  const binpose::ModelFile file = loadModel(o.model, binpose::unitScale(binpose::parseUnits(o.model_units)));
+  const binpose::ModelFile file = binpose::readModelOrBuiltin(o.model, binpose::unitScale(binpose::parseUnits(o.model_units)));
   const binpose::OrientedModel model = file.is_mesh ? binpose::prepareModel(file.mesh, mp) : binpose::prepareModel(file.cloud, mp);
   return binpose::ModelDatabase::build(model, binpose::defaultQuantization(model.diameter));
 }
@@ -301,7 +289,7 @@ int runSimulate(SimulateOptions o) {
   o.params.sensor.fy = o.params.sensor.fx;
   o.params.sensor.cx = (o.params.sensor.width - 1) / 2.0;
   o.params.sensor.cy = (o.params.sensor.height - 1) / 2.0;
-  const binpose::ModelFile file = loadModel(o.model, binpose::unitScale(binpose::parseUnits(o.units)));
+  const binpose::ModelFile file = binpose::readModelOrBuiltin(o.model, binpose::unitScale(binpose::parseUnits(o.units)));
   if (!file.is_mesh) throw binpose::Error(fmt::format("{}: the simulator needs a mesh, not a point cloud", o.model));
   const binpose::SimulatedScene scene = binpose::simulateBin(file.mesh, o.params);
   binpose::writeScene(o.out, scene, o.model, modelInfo(o, file.mesh));
@@ -379,7 +367,7 @@ nlohmann::json reportJson(const binpose::EvaluationReport& r) {
 int runEval(const EvalOptions& o) {
   const binpose::GroundTruth truth = binpose::readGroundTruth(o.truth);
   const auto [poses, total_ms] = readResult(o.result);
-  const binpose::ModelFile file = loadModel(o.model, binpose::unitScale(binpose::parseUnits(o.units)));
+  const binpose::ModelFile file = binpose::readModelOrBuiltin(o.model, binpose::unitScale(binpose::parseUnits(o.units)));
   if (!file.is_mesh) throw binpose::Error(fmt::format("{}: evaluation needs the part's mesh", o.model));
   const std::string info = o.models_info.empty() ? o.truth + "/models_info.json" : o.models_info;
   const binpose::EvalModel model = binpose::makeEvalModel(file.mesh, binpose::readSymmetries(info, o.obj_id));

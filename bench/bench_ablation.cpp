@@ -36,8 +36,12 @@ int main(int argc, char** argv) {
     return 2;
   }
   const int scenes = argc > 2 ? std::stoi(argv[2]) : 10, copies = argc > 3 ? std::stoi(argv[3]) : 4;
-  const std::string name = argv[1];
-  const Mesh mesh = name.rfind("builtin:", 0) == 0 ? builtinPart(name.substr(8)) : readMesh(name);
+  const ModelFile file = readModelOrBuiltin(argv[1]);
+  if (!file.is_mesh) {
+    std::fprintf(stderr, "%s: the ablation simulates scenes and needs a mesh\n", argv[1]);
+    return 2;
+  }
+  const Mesh& mesh = file.mesh;
   const OrientedModel model = prepareModel(mesh, ModelParams{});
   const ModelDatabase db = ModelDatabase::build(model, defaultQuantization(model.diameter));
   Vec3 centroid = Vec3::Zero();

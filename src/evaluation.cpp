@@ -132,15 +132,15 @@ EvaluationReport evaluate(const GroundTruth& truth, const std::vector<Pose>& det
   r.total_ms = total_ms;
   const float limit = threshold * model.diameter;
   // Candidate pairs near enough to matter, best (lowest ADD-S) first; each side used once.
-  struct Pair { float add_s; int det, gt; };
+  struct Pair { PoseErrors errors; int det, gt; };
   std::vector<Pair> pairs;
   for (std::size_t d = 0; d < detections.size(); ++d)
     for (std::size_t g = 0; g < truth.instances.size(); ++g) {
       if ((detections[d] * model.centroid - truth.instances[g].pose * model.centroid).norm() > model.diameter) continue;
-      const float add_s = poseErrors(detections[d], truth.instances[g].pose, model).add_s_mm;
-      if (add_s < limit) pairs.push_back({add_s, int(d), int(g)});
+      const PoseErrors e = poseErrors(detections[d], truth.instances[g].pose, model);
+      if (e.add_s_mm < limit) pairs.push_back({e, int(d), int(g)});
     }
-  std::stable_sort(pairs.begin(), pairs.end(), [](const Pair& a, const Pair& b) { return a.add_s < b.add_s; });
+  std::stable_sort(pairs.begin(), pairs.end(), [](const Pair& a, const Pair& b) { return a.errors.add_s_mm < b.errors.add_s_mm; });
   std::vector<char> det_used(detections.size(), 0);
   r.instances.resize(truth.instances.size());
   for (std::size_t g = 0; g < truth.instances.size(); ++g) {
@@ -153,7 +153,7 @@ EvaluationReport evaluate(const GroundTruth& truth, const std::vector<Pose>& det
     if (det_used[p.det] || inst.detection >= 0) continue;
     det_used[p.det] = 1;
     inst.detection = p.det;
-    inst.errors = poseErrors(detections[p.det], truth.instances[p.gt].pose, model);
+    inst.errors = p.errors;
   }
   r.visible_bin_total.assign(10, 0);
   r.visible_bin_found.assign(10, 0);

@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <map>
+#include <string_view>
 
 namespace binpose {
 
@@ -116,6 +117,15 @@ Mesh makeCap(const CapParams& c) {
   const float inner = c.radius - c.wall;
   profile.insert(profile.end(), {{c.radius, 0.0f}, {inner, 0.0f}, {inner, c.height - c.wall}, {0.0f, c.height - c.wall}});
   return revolve(profile, c.segments);
+}
+
+ModelFile readModelOrBuiltin(const std::string& spec, double scale) {
+  constexpr std::string_view prefix = "builtin:";
+  if (spec.rfind(prefix, 0) != 0) return readModelFile(spec, scale);
+  ModelFile file;
+  file.is_mesh = true;
+  file.mesh = builtinPart(spec.substr(prefix.size()));
+  return file;
 }
 
 Mesh builtinPart(const std::string& name) {

@@ -14,11 +14,6 @@
 namespace binpose {
 namespace {
 
-Mesh loadMesh(const std::string& spec) {
-  if (spec.rfind("builtin:", 0) == 0) return builtinPart(spec.substr(8));
-  return readMesh(spec);
-}
-
 /// Every combination of the grid's values (the cartesian product), in a fixed order.
 std::vector<std::map<std::string, double>> combinations(const SweepGrid& grid) {
   std::vector<std::map<std::string, double>> out{{}};
@@ -50,7 +45,9 @@ void apply(DetectionParams& p, const std::map<std::string, double>& combo) {
 
 std::vector<SweepRow> runSweep(const SweepSettings& s, const SweepGrid& grid, const std::function<void(int, int)>& progress) {
   if (s.scenes < 1 || s.out.empty()) throw Error("a sweep needs at least one scene and an output folder");
-  const Mesh mesh = loadMesh(s.model);
+  const ModelFile file = readModelOrBuiltin(s.model);
+  if (!file.is_mesh) throw Error(fmt::format("{}: a sweep simulates bins and needs a mesh", s.model));
+  const Mesh& mesh = file.mesh;
   std::filesystem::create_directories(s.out);
   // Scenes: simulated once, reused by every combination (and by a later run).
   std::vector<std::string> dirs;

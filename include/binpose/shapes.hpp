@@ -1,5 +1,6 @@
 #pragma once
 // Built-in analytic parts, as closed triangle meshes with outward winding (mm).
+#include <binpose/io.hpp>
 #include <binpose/types.hpp>
 
 #include <string>
@@ -29,5 +30,8 @@ Mesh makeCap(const CapParams& params = {});
 
 /// A built-in part by name ("cap", "sphere", "box"); throws for an unknown name.
 Mesh builtinPart(const std::string& name);
+
+/// A model file (readModelFile, lengths times `scale`), or the built-in part "builtin:NAME" (mm).
+ModelFile readModelOrBuiltin(const std::string& spec, double scale = 1.0);
 
 }  // namespace binpose

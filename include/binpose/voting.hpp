@@ -45,7 +45,6 @@ class Voter {
   int keep_;
   std::vector<std::uint16_t> votes_;      ///< A_k, one counter per model point
   std::vector<std::uint32_t> touched_;    ///< model points with a vote, for cheap clearing
-  std::vector<std::uint32_t> histogram_;  ///< accumulator values -> count
 };
 
 }  // namespace binpose
