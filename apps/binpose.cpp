@@ -108,8 +108,8 @@ void addDetect(CLI::App& app, DetectOptions& o) {
   d->add_option("--render", o.render, "Draw the scan with the detections, ranked, into this PNG");
   d->add_option("--export-ply", o.export_ply, "Write the scan and the posed models (coloured) into this PLY");
   d->add_option("--max-instances", o.max_instances, "Stop after N detections (0: no limit)");
-  d->add_option("--preset", o.preset, "Parameter preset: default, or thesis (chapter 5 as written)")
-      ->check(CLI::IsMember({"default", "thesis"}))->capture_default_str();
+  d->add_option("--preset", o.preset, "Parameter preset: default, fast (local votes), or thesis (chapter 5 as written)")
+      ->check(CLI::IsMember({"default", "fast", "thesis"}))->capture_default_str();
   d->add_option("--params", o.params_file, "JSON file of parameters (absolute units, mm), applied after the preset");
   d->add_option("--units", o.units, "Length unit of the scene file: mm or m")->check(CLI::IsMember({"mm", "m"}))->capture_default_str();
   d->add_option("--model-units", o.model_units, "Length unit of a model file trained on the fly")
@@ -200,7 +200,7 @@ std::string resultJson(const binpose::DetectionResult& r, const binpose::Detecti
     for (int i = 0; i < 4; ++i) rows.push_back({T(i, 0), T(i, 1), T(i, 2), T(i, 3)});
     j["detections"].push_back({{"pose", rows}, {"score", d.score}, {"correspondences", d.correspondences}, {"fit_rms_mm", d.rms}});
   }
-  j["timing_ms"] = {{"preprocess", r.timing.preprocess_ms}, {"match", r.timing.match_ms}, {"refine", r.timing.refine_ms},
+  j["timing_ms"] = {{"preprocess", r.timing.preprocess_ms}, {"vote", r.timing.vote_ms}, {"match", r.timing.match_ms}, {"refine", r.timing.refine_ms},
                     {"total", r.timing.total_ms}};
   j["scene_points"] = r.scene_points;
   j["sampled_points"] = r.sampled_points;
@@ -228,8 +228,8 @@ int runDetect(const DetectOptions& o) {
     fmt::print("{:>4}  {:>6.3f}  {:>5}  {:>8.2f} {:>8.2f} {:>9.2f}  {:>7.2f}d\n", i + 1, d.score, d.correspondences, t.x(),
                t.y(), t.z(), angle);
   }
-  fmt::print("{} detections in {:.1f} ms (preprocess {:.1f}, match {:.1f}, refine {:.1f})\n", r.detections.size(),
-             r.timing.total_ms, r.timing.preprocess_ms, r.timing.match_ms, r.timing.refine_ms);
+  fmt::print("{} detections in {:.1f} ms (preprocess {:.1f}, vote {:.1f}, match {:.1f}, refine {:.1f})\n", r.detections.size(),
+             r.timing.total_ms, r.timing.preprocess_ms, r.timing.vote_ms, r.timing.match_ms, r.timing.refine_ms);
   if (!o.render.empty()) {
     binpose::renderDetections(o.render, scan, r.detections, db.model().points, db.model().normals, params.viewpoint);
     fmt::print("picture: {}\n", o.render);
@@ -402,7 +402,7 @@ struct SweepOptions {
 void addSweep(CLI::App& app, SweepOptions& o) {
   CLI::App* w = app.add_subcommand("sweep", "Sweep parameters over simulated bins: CSV and the thesis's plots (Tables 1-7)");
   w->add_option("--model", o.settings.model, "Mesh or builtin:NAME")->capture_default_str();
-  w->add_option("--preset", o.settings.preset, "default or thesis")->check(CLI::IsMember({"default", "thesis"}))->capture_default_str();
+  w->add_option("--preset", o.settings.preset, "default, fast or thesis")->check(CLI::IsMember({"default", "fast", "thesis"}))->capture_default_str();
   w->add_option("--scenes", o.settings.scenes, "Simulated bins")->capture_default_str();
   w->add_option("--instances", o.settings.instances, "Parts per bin")->capture_default_str();
   w->add_option("--seed", o.settings.seed, "Seed of the first bin")->capture_default_str();

@@ -1,28 +1,136 @@
-// Micro-benchmarks of the offline stages. Run: build/bench/binpose_bench_stages
+// Micro-benchmarks of the pipeline's stages on a simulated bin of 16 built-in caps (about 100 000
+// scan points) and the cap's 4000-point model. Run: build/bench/binpose_bench_stages
+// (--benchmark_repetitions=5 --benchmark_report_aggregates_only=true for medians).
+#include <binpose/clique.hpp>
 #include <binpose/model.hpp>
 #include <binpose/model_database.hpp>
+#include <binpose/normals.hpp>
+#include <binpose/refine.hpp>
+#include <binpose/scene.hpp>
 #include <binpose/shapes.hpp>
+#include <binpose/simulation.hpp>
+#include <binpose/voting.hpp>
 
 #include <benchmark/benchmark.h>
 
+#include <cmath>
+
+using namespace binpose;
+
 namespace {
 
-void BM_PrepareModel(benchmark::State& state) {
-  const binpose::Mesh mesh = binpose::makeSphere(30.0f, 4);
-  binpose::ModelParams params;
-  params.num_points = static_cast<int>(state.range(0));
-  for (auto _ : state) benchmark::DoNotOptimize(binpose::prepareModel(mesh, params));
+/// The bin, the model, its database and the default parameters, made once.
+struct Fixture {
+  Mesh mesh = builtinPart("cap");
+  OrientedModel model = prepareModel(mesh, ModelParams{});
+  ModelDatabase db = ModelDatabase::build(model, defaultQuantization(model.diameter));
+  DetectionParams params = scaledToModel(defaultPreset(), model.diameter);
+  SimulatedScene bin = [this] {
+    SimulationParams sp;
+    sp.seed = 7;
+    return simulateBin(mesh, sp);
+  }();
+  KdTree scan_tree{bin.cloud.points};
+  PreparedScene scene = prepareScene(bin.cloud.points, scan_tree, params);
+  std::vector<std::vector<std::uint32_t>> groups = makeSubGroups(scene.points, params.eta, params.r, 8);
+  /// The sub-group of median size.
+  const std::vector<std::uint32_t>& medianGroup() const { return groups[groups.size() / 2]; }
+};
+
+const Fixture& fixture() {
+  static const Fixture f;
+  return f;
 }
-BENCHMARK(BM_PrepareModel)->Arg(1000)->Arg(4000)->Unit(benchmark::kMillisecond);
 
 void BM_BuildDatabase(benchmark::State& state) {
-  binpose::ModelParams params;
-  params.num_points = static_cast<int>(state.range(0));
-  const binpose::OrientedModel model = binpose::prepareModel(binpose::makeBox({60, 40, 20}, 4), params);
-  const auto q = binpose::defaultQuantization(model.diameter);
-  for (auto _ : state) benchmark::DoNotOptimize(binpose::ModelDatabase::build(model, q));
+  const Fixture& f = fixture();
+  const auto q = defaultQuantization(f.model.diameter);
+  for (auto _ : state) benchmark::DoNotOptimize(ModelDatabase::build(f.model, q));
 }
-BENCHMARK(BM_BuildDatabase)->Arg(1000)->Arg(4000)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_BuildDatabase)->Unit(benchmark::kMillisecond);
+
+void BM_Subsample(benchmark::State& state) {
+  const Fixture& f = fixture();
+  const float spacing = 1.0f / std::sqrt(f.params.rho_sub);
+  for (auto _ : state) benchmark::DoNotOptimize(voxelSubsample(f.bin.cloud.points, spacing));
+  state.counters["scan_points"] = static_cast<double>(f.bin.cloud.size());
+}
+BENCHMARK(BM_Subsample)->Unit(benchmark::kMillisecond);
+
+void BM_ScanKdTree(benchmark::State& state) {
+  const Fixture& f = fixture();
+  for (auto _ : state) benchmark::DoNotOptimize(KdTree(f.bin.cloud.points));
+}
+BENCHMARK(BM_ScanKdTree)->Unit(benchmark::kMillisecond);
+
+void BM_Normals(benchmark::State& state) {  // plane fits of the sampled points on the full scan (5.2.2)
+  const Fixture& f = fixture();
+  for (auto _ : state)
+    benchmark::DoNotOptimize(estimateNormals(f.scan_tree, f.bin.cloud.points, f.scene.points, f.params.k_normals, Vec3::Zero()));
+  state.counters["points"] = static_cast<double>(f.scene.points.size());
+}
+BENCHMARK(BM_Normals)->Unit(benchmark::kMillisecond);
+
+void BM_VoteSubGroup(benchmark::State& state) {  // 4.3-4.4 on the median sub-group, one thread
+  const Fixture& f = fixture();
+  Voter voter(f.db);
+  std::vector<Correspondence> out;
+  for (auto _ : state) {
+    out.clear();
+    voter.vote(f.scene.points, f.scene.normals, f.medianGroup(), out);
+    benchmark::DoNotOptimize(out.data());
+  }
+  state.counters["group_points"] = static_cast<double>(f.medianGroup().size());
+}
+BENCHMARK(BM_VoteSubGroup)->Unit(benchmark::kMillisecond);
+
+void BM_VoteSubGroupParallel(benchmark::State& state) {  // the same, its points shared among threads
+  const Fixture& f = fixture();
+  ParallelVoter voter(f.db);
+  std::vector<Correspondence> out;
+  for (auto _ : state) {
+    out.clear();
+    voter.vote(f.scene.points, f.scene.normals, f.medianGroup(), out);
+    benchmark::DoNotOptimize(out.data());
+  }
+}
+BENCHMARK(BM_VoteSubGroupParallel)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_LocalVotes(benchmark::State& state) {  // the fast preset: every sampled point votes once
+  const Fixture& f = fixture();
+  const DetectionParams p = scaledToModel(presetByName("fast"), f.model.diameter);
+  for (auto _ : state)
+    benchmark::DoNotOptimize(voteNeighbourhoods(f.db, f.scene.points, f.scene.normals, p.vote_radius, p.candidates_per_point));
+}
+BENCHMARK(BM_LocalVotes)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_CliqueSearch(benchmark::State& state) {  // 4.5 on the median sub-group's candidate pairs
+  const Fixture& f = fixture();
+  std::vector<Correspondence> cps;
+  Voter(f.db).vote(f.scene.points, f.scene.normals, f.medianGroup(), cps);
+  Graph g(static_cast<int>(cps.size()));
+  for (std::size_t i = 0; i < cps.size(); ++i)
+    for (std::size_t j = i + 1; j < cps.size(); ++j) {
+      const float dm = (f.model.points[cps[i].model] - f.model.points[cps[j].model]).norm();
+      const float ds = (f.scene.points[cps[i].scene] - f.scene.points[cps[j].scene]).norm();
+      if (std::abs(dm - ds) < f.params.e_gmax) g.addEdge(static_cast<int>(i), static_cast<int>(j));
+    }
+  for (auto _ : state) benchmark::DoNotOptimize(maximumClique(g, f.params.clique_work_limit));
+  state.counters["vertices"] = static_cast<double>(cps.size());
+}
+BENCHMARK(BM_CliqueSearch)->Unit(benchmark::kMillisecond);
+
+void BM_Refine(benchmark::State& state) {  // point-to-plane ICP from 1 mm and 2 degrees off the truth
+  const Fixture& f = fixture();
+  const Pose truth = f.bin.instances.front().pose;
+  Pose start = truth;
+  start.translation() += Vec3(0.6f, -0.5f, 0.6f);
+  start.linear() = start.linear() * Eigen::AngleAxisf(0.035f, Vec3(1, 1, 0).normalized()).toRotationMatrix();
+  const IcpParams icp{f.params.icp_iterations, f.params.icp_max_distance, f.params.verify_tolerance, Vec3::Zero()};
+  for (auto _ : state)
+    benchmark::DoNotOptimize(refinePose(start, f.model.points, f.model.normals, f.bin.cloud.points, f.scan_tree, icp));
+}
+BENCHMARK(BM_Refine)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 

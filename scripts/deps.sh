@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
 # Installs binpose's build and test dependencies from Debian 12's packages (needs root or sudo).
+# With --bench also the peer of the end-to-end benchmark, OpenCV's PPF detector (libopencv-contrib-dev).
 set -euo pipefail
 packages=(cmake ninja-build g++ pkg-config
           libeigen3-dev libnanoflann-dev libtbb-dev libcli11-dev nlohmann-json3-dev libfmt-dev
           libassimp-dev libpng-dev zlib1g-dev liblzf-dev libgtest-dev libbenchmark-dev
           libbullet-dev libembree-dev gnuplot-nox)
+[ "${1:-}" = "--bench" ] && packages+=(libopencv-dev libopencv-contrib-dev)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

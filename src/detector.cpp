@@ -88,12 +88,22 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   result.subgroups = groups.size();
   result.timing.preprocess_ms = msSince(t0);
 
+  const auto max_list = static_cast<std::uint32_t>(p.max_key_share * static_cast<float>(model.size()));
+  std::vector<std::vector<std::uint32_t>> local;  // each point's candidates, when voting once
+  if (p.local_votes) {
+    std::vector<std::uint32_t> voters;
+    if (p.voter_spacing > 0) voters = voxelSubsample(scene.points, p.voter_spacing);
+    local = voteNeighbourhoods(db_, scene.points, scene.normals, p.vote_radius, p.candidates_per_point, max_list, voters);
+  }
+  result.timing.vote_ms = msSince(t0) - result.timing.preprocess_ms;
+
   std::vector<char> removed(scene.points.size(), 0);
-  Voter voter(db_, p.candidates_per_point);
+  ParallelVoter voter(db_, p.candidates_per_point, max_list);
   std::vector<std::uint32_t> members;
   std::vector<Correspondence> candidates;
   Points clique_model, clique_scene;
   std::vector<Hypothesis> hypotheses;
+  std::vector<char> explained(scan.size(), 0);  // scan points supporting a detection scoring >= 0.5
   int confident = 0;  // detections that removed their points
   double refine_ms = 0;
   const auto t_match = Clock::now();
@@ -104,7 +114,11 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
     if (members.size() < static_cast<std::size_t>(p.C_n)) continue;
     ++result.subgroups_run;
     candidates.clear();
-    voter.vote(scene.points, scene.normals, members, candidates);  // 4.3-4.4
+    if (p.local_votes)
+      for (const auto i : members)
+        for (const auto m : local[i]) candidates.push_back({i, m});
+    else
+      voter.vote(scene.points, scene.normals, members, candidates);  // 4.3-4.4
     if (candidates.size() < static_cast<std::size_t>(p.C_n)) continue;
     const CliqueResult clique =
         maximumClique(consistencyGraph(candidates, scene.points, model, p.e_gmax), p.clique_work_limit);  // 4.5
@@ -118,6 +132,11 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
     const PoseFit fit = solvePose(clique_model, clique_scene);  // 4.6
     if (!fit.ok) continue;
     Detection det{fit.pose, 0.0f, static_cast<int>(clique.vertices.size()), fit.rms};
+    if (p.verify) {  // most of the clique on an object already scored well: the same object again
+      int taken = 0;
+      for (const int v : clique.vertices) taken += explained[scene.scan_index[candidates[v].scene]];
+      if (2 * taken > static_cast<int>(clique.vertices.size())) continue;
+    }
 
     const auto t_refine = Clock::now();
     if (p.refine) {
@@ -133,6 +152,8 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
     std::sort(h.support.begin(), h.support.end());
     h.support.erase(std::unique(h.support.begin(), h.support.end()), h.support.end());
     h.detection = det;
+    if (det.score >= 0.5f)
+      for (const auto i : h.support) explained[i] = 1;
     hypotheses.push_back(std::move(h));
     if (det.score < p.removal_score) continue;
     if (p.max_instances > 0 && ++confident >= p.max_instances) break;  // enough sure detections  // not sure enough to take its points away

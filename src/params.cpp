@@ -28,6 +28,10 @@ void visit(json& j, DetectionParams& p, bool write) {
   field(j, "sigma_dist", p.sigma_dist, write);
   field(j, "k_normals", p.k_normals, write);
   field(j, "candidates_per_point", p.candidates_per_point, write);
+  field(j, "local_votes", p.local_votes, write);
+  field(j, "vote_radius", p.vote_radius, write);
+  field(j, "voter_spacing", p.voter_spacing, write);
+  field(j, "max_key_share", p.max_key_share, write);
   field(j, "refine", p.refine, write);
   field(j, "icp_iterations", p.icp_iterations, write);
   field(j, "icp_max_distance", p.icp_max_distance, write);
@@ -68,21 +72,33 @@ DetectionParams thesisPreset() {
   p.verify = false;
   p.removal_score = 0.0f;
   p.candidates_per_point = 1;
+  p.local_votes = false;
+  p.max_key_share = 1.0f;
   return p;
 }
 
 DetectionParams defaultPreset() { return DetectionParams{}; }
 
+DetectionParams fastPreset() {
+  DetectionParams p;
+  p.local_votes = true;
+  p.candidates_per_point = 8;
+  return p;
+}
+
 DetectionParams presetByName(const std::string& name) {
   if (name == "thesis") return thesisPreset();
   if (name == "default") return defaultPreset();
-  throw Error(fmt::format("unknown preset '{}' (known: default, thesis)", name));
+  if (name == "fast") return fastPreset();
+  throw Error(fmt::format("unknown preset '{}' (known: default, fast, thesis)", name));
 }
 
 DetectionParams scaledToModel(const DetectionParams& params, float model_diameter) {
   const float s = thesisScale(model_diameter);
   DetectionParams p = params;
   p.r *= s;
+  p.vote_radius *= s;
+  p.voter_spacing *= s;
   p.eta *= s;
   p.e_gmax *= s;
   p.sigma_dist *= s;
@@ -96,6 +112,8 @@ void validate(const DetectionParams& p) {
   positive(p.r, "r (sampling radius)", "length in mm");
   positive(p.rho_sub, "rho_sub", "density in points/mm^2");
   positive(p.eta, "eta (grid spacing)", "length in mm");
+  positive(p.vote_radius, "vote_radius", "length in mm");
+  if (!(p.voter_spacing >= 0) || !std::isfinite(p.voter_spacing)) throw Error(fmt::format("voter_spacing must be >= 0 mm, got {}", p.voter_spacing));
   positive(p.e_gmax, "e_gmax", "length in mm");
   positive(p.sigma_dist, "sigma_dist", "length in mm");
   positive(p.icp_max_distance, "icp_max_distance", "length in mm");
@@ -107,6 +125,7 @@ void validate(const DetectionParams& p) {
   if (!(p.removal_score >= 0 && p.removal_score <= 1)) throw Error(fmt::format("removal_score must lie in [0, 1], got {}", p.removal_score));
   if (p.candidates_per_point < 1 || p.candidates_per_point > 64)
     throw Error(fmt::format("candidates_per_point must lie in [1, 64], got {}", p.candidates_per_point));
+  if (!(p.max_key_share > 0 && p.max_key_share <= 1)) throw Error(fmt::format("max_key_share must lie in (0, 1], got {}", p.max_key_share));
   if (p.max_instances < 0) throw Error(fmt::format("max_instances must be >= 0, got {}", p.max_instances));
   if (p.clique_work_limit < 1) throw Error("clique_work_limit must be >= 1");
   if (!p.viewpoint.allFinite()) throw Error("viewpoint must be finite");

@@ -1,8 +1,14 @@
 // Accumulator voting and fourth-spread selection (thesis 4.3-4.4).
 #include <binpose/voting.hpp>
 
+#include <binpose/kdtree.hpp>
+
 #include <algorithm>
+#include <numeric>
 #include <fmt/format.h>
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
 
 namespace binpose {
 namespace {
@@ -58,30 +64,97 @@ std::vector<std::size_t> selectCandidates(std::span<const std::uint32_t> values,
   return picked;
 }
 
-Voter::Voter(const ModelDatabase& db, int keep) : db_(db), keep_(keep), votes_(db.model().points.size(), 0) {}
+Voter::Voter(const ModelDatabase& db, int keep, std::uint32_t max_list)
+    : db_(db), keep_(keep), max_list_(max_list), votes_(db.model().points.size(), 0) {}
+
+void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t k,
+                      std::span<const std::uint32_t> partners, std::vector<Correspondence>& out) {
+  const KeySpace& keys = db_.keySpace();
+  // L_k (eq. 9): the model points under the key of every feature (ss_k -> ss_o). Features of the
+  // same key (pairs on one plane, say) are counted together: the same sums, fewer increments.
+  keys_.clear();
+  for (const std::uint32_t o : partners) {
+    PairFeature f;
+    if (o != k && computeFeature(points[k], normals[k], points[o], normals[o], f)) keys_.push_back(keys.key(f));
+  }
+  std::sort(keys_.begin(), keys_.end());
+  for (std::size_t a = 0, b = 0; a < keys_.size(); a = b) {
+    while (b < keys_.size() && keys_[b] == keys_[a]) ++b;
+    const auto ids = db_.lookup(keys_[a]);
+    if (ids.size() > max_list_) continue;  // a feature nearly every model point has: no information
+    const auto times = static_cast<std::uint16_t>(b - a);
+    for (const auto id : ids) {
+      if (votes_[id] == 0) touched_.push_back(id);
+      votes_[id] = static_cast<std::uint16_t>(votes_[id] + times);
+    }
+  }
+  if (touched_.empty()) return;
+  // A_k over the distinct model points of L_k, then eq. 10-12.
+  values_.clear();
+  for (const auto id : touched_) values_.push_back(votes_[id]);
+  for (const std::size_t i : selectCandidates(values_, keep_)) out.push_back({k, touched_[i]});
+  for (const auto id : touched_) votes_[id] = 0;
+  touched_.clear();
+}
 
 void Voter::vote(const Points& points, const Points& normals, std::span<const std::uint32_t> group,
                  std::vector<Correspondence>& out) {
   if (group.size() >= 65535) throw Error(fmt::format("sub-group of {} points is too large to vote", group.size()));
-  const KeySpace& keys = db_.keySpace();
-  std::vector<std::uint32_t> values;
-  for (const std::uint32_t k : group) {
-    // L_k (eq. 9): the model points under the key of every feature (ss_k -> ss_o).
-    for (const std::uint32_t o : group) {
-      PairFeature f;
-      if (o == k || !computeFeature(points[k], normals[k], points[o], normals[o], f)) continue;
-      for (const auto id : db_.lookup(keys.key(f))) {
-        if (votes_[id]++ == 0) touched_.push_back(id);
-      }
-    }
-    if (touched_.empty()) continue;
-    // A_k over the distinct model points of L_k, then eq. 10-12.
-    values.clear();
-    for (const auto id : touched_) values.push_back(votes_[id]);
-    for (const std::size_t i : selectCandidates(values, keep_)) out.push_back({k, touched_[i]});
-    for (const auto id : touched_) votes_[id] = 0;
-    touched_.clear();
+  for (const std::uint32_t k : group) votePoint(points, normals, k, group, out);
+}
+
+ParallelVoter::ParallelVoter(const ModelDatabase& db, int keep, std::uint32_t max_list)
+    : voters_([&db, keep, max_list] { return Voter(db, keep, max_list); }) {}
+
+void ParallelVoter::vote(const Points& points, const Points& normals, std::span<const std::uint32_t> group,
+                         std::vector<Correspondence>& out) {
+  if (group.size() >= 65535) throw Error(fmt::format("sub-group of {} points is too large to vote", group.size()));
+  constexpr std::size_t kChunk = 16;  // points per task; each task's pairs kept apart, joined in order
+  const std::size_t chunks = (group.size() + kChunk - 1) / kChunk;
+  if (parts_.size() < chunks) parts_.resize(chunks);
+  tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
+    Voter& voter = voters_.local();
+    parts_[c].clear();
+    for (std::size_t i = c * kChunk; i < std::min(group.size(), (c + 1) * kChunk); ++i)
+      voter.votePoint(points, normals, group[i], group, parts_[c]);
+  });
+  for (std::size_t c = 0; c < chunks; ++c) out.insert(out.end(), parts_[c].begin(), parts_[c].end());
+}
+
+std::vector<std::vector<std::uint32_t>> voteNeighbourhoods(const ModelDatabase& db, const Points& points,
+                                                           const Points& normals, float radius, int keep,
+                                                           std::uint32_t max_list, std::span<const std::uint32_t> voters) {
+  std::vector<std::vector<std::uint32_t>> result(points.size());
+  if (points.empty()) return result;
+  std::vector<std::uint32_t> all;
+  if (voters.empty()) {
+    all.resize(points.size());
+    std::iota(all.begin(), all.end(), 0u);
+    voters = all;
   }
+  const KdTree tree(points);
+  struct Local {
+    Voter voter;
+    std::vector<std::pair<std::uint32_t, float>> found;
+    std::vector<std::uint32_t> partners;
+    std::vector<Correspondence> out;
+  };
+  tbb::enumerable_thread_specific<Local> locals([&] { return Local{Voter(db, keep, max_list), {}, {}, {}}; });
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, voters.size(), 32), [&](const tbb::blocked_range<std::size_t>& range) {
+    Local& l = locals.local();
+    for (std::size_t v = range.begin(); v < range.end(); ++v) {
+      const std::uint32_t k = voters[v];
+      tree.radius(points[k], radius, l.found);
+      if (l.found.size() >= 65535) throw Error(fmt::format("{} points within {} mm of a point: too many to vote", l.found.size(), radius));
+      l.partners.clear();
+      for (const auto& [o, d2] : l.found) l.partners.push_back(o);
+      std::sort(l.partners.begin(), l.partners.end());  // the same sums whatever the tree's order
+      l.out.clear();
+      l.voter.votePoint(points, normals, k, l.partners, l.out);
+      for (const Correspondence& c : l.out) result[k].push_back(c.model);
+    }
+  });
+  return result;
 }
 
 }  // namespace binpose

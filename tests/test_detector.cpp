@@ -57,7 +57,9 @@ TEST(Detector, FindsEveryCopyAtKnownPoses) {
   });
   ASSERT_GT(scan.size(), 10000u);
 
-  const Detector detector(db, scaledToModel(defaultPreset(), db.model().diameter));
+  for (const char* preset : {"default", "fast"}) {
+  SCOPED_TRACE(preset);
+  const Detector detector(db, scaledToModel(presetByName(preset), db.model().diameter));
   const DetectionResult result = detector.detect(scan);
   const Vec3 c = centroidOf(db.model().points);
   std::vector<int> found(truth.size(), 0);
@@ -72,9 +74,10 @@ TEST(Detector, FindsEveryCopyAtKnownPoses) {
     EXPECT_LT(e.angle_deg, 2.0f) << "copy " << best;
   }
   for (std::size_t t = 0; t < truth.size(); ++t) EXPECT_EQ(found[t], 1) << "copy " << t << " found " << found[t] << " times";
-  std::printf("scan %zu points, sampled %zu, %zu sub-groups (%zu run), %.1f ms (pre %.1f, match %.1f, refine %.1f)\n",
-              result.scene_points, result.sampled_points, result.subgroups, result.subgroups_run, result.timing.total_ms,
-              result.timing.preprocess_ms, result.timing.match_ms, result.timing.refine_ms);
+  std::printf("%s: scan %zu points, sampled %zu, %zu sub-groups (%zu run), %.1f ms (pre %.1f, vote %.1f, match %.1f, refine %.1f)\n",
+              preset, result.scene_points, result.sampled_points, result.subgroups, result.subgroups_run, result.timing.total_ms,
+              result.timing.preprocess_ms, result.timing.vote_ms, result.timing.match_ms, result.timing.refine_ms);
+  }
 }
 
 TEST(Detector, SameResultWhateverTheThreadCount) {
@@ -83,7 +86,7 @@ TEST(Detector, SameResultWhateverTheThreadCount) {
   Rng rng(5);
   const std::vector<Pose> truth{test::randomPose(rng, Vec3(-60, 0, 500)), test::randomPose(rng, Vec3(60, 0, 500))};
   const PointCloud scan = test::renderCopies(mesh, truth, {}, [](std::size_t, const Vec3&) { return true; });
-  for (const char* preset : {"default", "thesis"}) {
+  for (const char* preset : {"default", "fast", "thesis"}) {
     const Detector detector(ipdDatabase(), scaledToModel(presetByName(preset), ipdDatabase().model().diameter));
     DetectionResult one;
     {
@@ -132,7 +135,7 @@ TEST(RealScans, ParasaurolophusInUwaRs1) {
   const PointCloud scan = readPlyCloud(test::dataPath("uwa/rs1_normals.ply"));
   const Pose reference = readPose(test::dataPath("uwa/REFERENCE_pose_parasaurolophus_in_rs1_DERIVED.txt"));
   const Vec3 c = centroidOf(db.model().points);
-  for (const char* preset : {"default", "thesis"}) {
+  for (const char* preset : {"default", "fast", "thesis"}) {
     const Detector detector(db, scaledToModel(presetByName(preset), model.diameter));
     const DetectionResult result = detector.detect(scan);
     ASSERT_FALSE(result.detections.empty()) << preset;

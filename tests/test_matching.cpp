@@ -2,12 +2,18 @@
 #include <binpose/clique.hpp>
 #include <binpose/geometry.hpp>
 #include <binpose/pose.hpp>
+#include <binpose/model.hpp>
+#include <binpose/model_database.hpp>
+#include <binpose/shapes.hpp>
 #include <binpose/voting.hpp>
+
+#include "synthetic.hpp"
 
 #include "test_util.hpp"
 
 #include <Eigen/Geometry>
 
+#include <memory>
 #include <numeric>
 
 using namespace binpose;
@@ -186,4 +192,62 @@ TEST(Pose, RefusesMirrorImageAndDegenerateSets) {
   ASSERT_TRUE(fit.ok);
   EXPECT_LT(fit.rms, 1e-3f);
   EXPECT_TRUE(fit.pose.linear().isIdentity(1e-4f));
+}
+
+// ---- voting (4.3-4.4) -------------------------------------------------------------------------
+
+namespace {
+/// An L-shaped part of two boxes (no symmetry): every surface point has one true model point.
+const ModelDatabase& lDatabase() {
+  static const ModelDatabase db = [] {
+    Mesh a = makeBox(Vec3(60, 20, 15), 4), b = makeBox(Vec3(20, 40, 15), 4);
+    for (Vec3& v : b.vertices) v += Vec3(20, 30, 0);
+    const auto offset = static_cast<int>(a.vertices.size());
+    a.vertices.insert(a.vertices.end(), b.vertices.begin(), b.vertices.end());
+    for (const auto& f : b.faces) a.faces.push_back(f + Eigen::Vector3i::Constant(offset));
+    ModelParams mp;
+    mp.num_points = 1500;
+    const OrientedModel model = prepareModel(a, mp);
+    return ModelDatabase::build(model, defaultQuantization(model.diameter));
+  }();
+  return db;
+}
+
+/// Every 3rd model point, moved by `pose`: scene point i is model point 3 i.
+void movedModel(const Pose& pose, Points& points, Points& normals) {
+  const OrientedModel& m = lDatabase().model();
+  for (std::size_t i = 0; i < m.points.size(); i += 3) {
+    points.push_back(pose * m.points[i]);
+    normals.push_back(pose.linear() * m.normals[i]);
+  }
+}
+}  // namespace
+
+TEST(Voting, ParallelVoterGivesTheSequentialPairs) {
+  Points points, normals;
+  movedModel(test::randomPose(*std::make_unique<Rng>(3), Vec3(0, 0, 400)), points, normals);
+  std::vector<std::uint32_t> group(points.size());
+  std::iota(group.begin(), group.end(), 0u);
+  std::vector<Correspondence> sequential, parallel;
+  Voter(lDatabase(), 2).vote(points, normals, group, sequential);
+  ParallelVoter(lDatabase(), 2).vote(points, normals, group, parallel);
+  ASSERT_GT(sequential.size(), group.size() / 2);
+  EXPECT_EQ(sequential, parallel);
+}
+
+TEST(Voting, LocalVotesPointAtTheTrueModelPoints) {
+  Points points, normals;
+  Rng rng(5);
+  movedModel(test::randomPose(rng, Vec3(10, -20, 450)), points, normals);
+  const auto candidates = voteNeighbourhoods(lDatabase(), points, normals, 40.0f, 1);
+  const Points& model = lDatabase().model().points;
+  const float near = 2.5f * lDatabase().model().sample_radius;
+  int voted = 0, right = 0;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (candidates[i].empty()) continue;
+    ++voted;
+    right += (model[candidates[i].front()] - model[3 * i]).norm() <= near;
+  }
+  EXPECT_GT(voted, static_cast<int>(points.size()) / 5);  // flat faces: many points have no outlier (eq. 11)
+  EXPECT_GT(right, 3 * voted / 4) << right << " of " << voted << " candidates near the true model point";
 }

@@ -18,7 +18,7 @@ struct Detection {
 };
 
 struct DetectionTiming {
-  double preprocess_ms = 0, match_ms = 0, refine_ms = 0, total_ms = 0;
+  double preprocess_ms = 0, vote_ms = 0, match_ms = 0, refine_ms = 0, total_ms = 0;  ///< vote_ms: local votes
 };
 
 struct DetectionResult {

@@ -29,6 +29,16 @@ struct DetectionParams {
   // --- beyond the thesis (each switchable; the thesis preset turns them off) ----------------
   int candidates_per_point = 1;   ///< model points kept per scene point: 1 is eq. 12's maximum; about 8 for
                                   ///< bodies of revolution, whose symmetric points share their votes
+  /// Each scene point votes once, with the points within vote_radius of it, and its sub-groups reuse its
+  /// candidates (false: it votes again in every sub-group with that group's points, as 4.3 does).
+  bool local_votes = false;
+  /// With local votes, only one point per cube of this side votes (the others are its partners):
+  /// fewer, evenly spread reference points, mm. 0: every point votes.
+  float voter_spacing = 0.0f;
+  float vote_radius = 40.0f;  ///< partners of a point's local votes lie within this, mm (about 2/3 of the part)
+  /// Features whose key lists more than this share of the model's points are not counted (the
+  /// pairs of a plane, found on nearly every flat region: many votes, little information). 1: all.
+  float max_key_share = 1.0f;
   bool refine = true;             ///< point-to-plane ICP of each pose against the full scan
   int icp_iterations = 20;
   float icp_max_distance = 3.0f;  ///< ICP correspondence gate at the start, mm (shrinks as it converges)
@@ -51,7 +61,10 @@ struct DetectionParams {
 DetectionParams thesisPreset();
 /// binpose's defaults.
 DetectionParams defaultPreset();
-/// A preset by name: "thesis" or "default".
+/// binpose's defaults, but each scene point votes once (local_votes) and keeps its 8 best model
+/// points: 3-4x faster; better on parts without rotational symmetry, worse on bodies of revolution.
+DetectionParams fastPreset();
+/// A preset by name: "thesis", "default" or "fast".
 DetectionParams presetByName(const std::string& name);
 
 /// Distance-like values (r, eta, e_gmax, sigma_dist, ICP gate, verify tolerance) times s and

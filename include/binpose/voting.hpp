@@ -3,8 +3,11 @@
 #include <binpose/model_database.hpp>
 
 #include <cstdint>
+#include <climits>
 #include <span>
 #include <vector>
+
+#include <tbb/enumerable_thread_specific.h>
 
 namespace binpose {
 
@@ -35,16 +38,46 @@ std::vector<std::size_t> selectCandidates(std::span<const std::uint32_t> values,
 class Voter {
  public:
   /// `keep`: candidates per scene point (1: the thesis's maximum; see selectCandidates).
-  explicit Voter(const ModelDatabase& db, int keep = 1);
-  /// Appends to `out` the candidate pairs of each point of `group` (indices into points/normals).
+  /// `max_list`: features whose key lists more model points than this are skipped (default: none).
+  explicit Voter(const ModelDatabase& db, int keep = 1, std::uint32_t max_list = UINT32_MAX);
+  /// Appends to `out` the candidate pairs of each point of `group` (indices into points/normals),
+  /// each point voting with the whole group (the thesis's sub-group voting).
   void vote(const Points& points, const Points& normals, std::span<const std::uint32_t> group,
             std::vector<Correspondence>& out);
+  /// Appends to `out` the candidate pairs of scene point k voting with the features to `partners`.
+  void votePoint(const Points& points, const Points& normals, std::uint32_t k, std::span<const std::uint32_t> partners,
+                 std::vector<Correspondence>& out);
 
  private:
   const ModelDatabase& db_;
   int keep_;
+  std::uint32_t max_list_;
+  std::vector<std::uint32_t> values_;
+  std::vector<std::uint32_t> keys_;       ///< the keys of one point's features     ///< the accumulator's non-zero values
   std::vector<std::uint16_t> votes_;      ///< A_k, one counter per model point
   std::vector<std::uint32_t> touched_;    ///< model points with a vote, for cheap clearing
 };
+
+/// Voter::vote with the points of a group shared among threads: the same pairs in the same
+/// order whatever the thread count.
+class ParallelVoter {
+ public:
+  explicit ParallelVoter(const ModelDatabase& db, int keep = 1, std::uint32_t max_list = UINT32_MAX);
+  void vote(const Points& points, const Points& normals, std::span<const std::uint32_t> group,
+            std::vector<Correspondence>& out);
+
+ private:
+  tbb::enumerable_thread_specific<Voter> voters_;
+  std::vector<std::vector<Correspondence>> parts_;
+};
+
+/// Beyond the thesis: every scene point votes once, with the features to the points within
+/// `radius` of it (instead of once per sub-group it belongs to, about 9 times with the thesis's
+/// eta and r). The candidate model points of each point, in parallel; the same whatever the
+/// thread count. Only the points listed in `voters` vote (all when empty); the others are partners.
+std::vector<std::vector<std::uint32_t>> voteNeighbourhoods(const ModelDatabase& db, const Points& points,
+                                                           const Points& normals, float radius, int keep,
+                                                           std::uint32_t max_list = UINT32_MAX,
+                                                           std::span<const std::uint32_t> voters = {});
 
 }  // namespace binpose
