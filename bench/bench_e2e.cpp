@@ -242,7 +242,7 @@ Outcome runOpencv(const OrientedModel& model, const PointCloud& scan, const Open
   for (int r = 0; r < repeats; ++r) {
     const auto t = Clock::now();
     cv::Mat scene_pc;
-    cv::ppf_match_3d::computeNormalsPC3d(scene_xyz, scene_pc, 6, false, cv::Vec3f(0, 0, 0));
+    cv::ppf_match_3d::computeNormalsPC3d(scene_xyz, scene_pc, 6, true, cv::Vec3f(0, 0, 0));  // facing the sensor
     std::vector<cv::ppf_match_3d::Pose3DPtr> results;
     detector.match(scene_pc, results, s.scene_sample, s.scene_distance);
     const std::size_t keep = std::min(results.size(), std::max<std::size_t>(instances, s.icp_top));
