@@ -168,8 +168,11 @@ ModelParams modelParams(const InputSpec& s) {
   return mp;
 }
 
-OrientedModel orientedModel(const Input& in, const InputSpec& s) {
-  return in.model.is_mesh ? prepareModel(in.model.mesh, modelParams(s)) : prepareModel(in.model.cloud, modelParams(s));
+/// The input's model sampled to `points` points (0: binpose's default for the input).
+OrientedModel orientedModel(const Input& in, const InputSpec& s, int points = 0) {
+  ModelParams mp = modelParams(s);
+  if (points > 0) mp.num_points = points;
+  return in.model.is_mesh ? prepareModel(in.model.mesh, mp) : prepareModel(in.model.cloud, mp);
 }
 
 /// What one method gives on one input.
@@ -278,21 +281,16 @@ int runOne(const Options& o) {
   const auto spec = std::find_if(inputSpecs().begin(), inputSpecs().end(), [&](auto& s) { return s.name == o.run_input; });
   if (spec == inputSpecs().end()) throw Error(fmt::format("unknown input '{}'", o.run_input));
   const Input in = loadInput(o, *spec);
-  const OrientedModel model = orientedModel(in, *spec);
-  EvalModel eval = in.model.is_mesh ? in.eval : cloudEvalModel(model);
+  const OrientedModel model = orientedModel(in, *spec);  // binpose's; a cloud model's evaluation surface
+  const EvalModel eval = in.model.is_mesh ? in.eval : cloudEvalModel(model);
   const long baseline = residentKiB();
   const std::size_t instances = in.truth.instances.size();
   Outcome r;
   if (o.run_method == "binpose") r = runBinpose(model, in.scan, "default", o.repeats);
-  else if (o.run_method == "binpose-fast") r = runBinpose(model, in.scan, "fast", o.repeats);
-  else if (o.run_method == "binpose-thesis") r = runBinpose(model, in.scan, "thesis", o.repeats);
+  else if (o.run_method.starts_with("binpose-")) r = runBinpose(model, in.scan, o.run_method.substr(8), o.repeats);
   else if (o.run_method.starts_with("opencv")) {
     const OpencvSettings settings = opencvSettings(o.run_method, instances);
-    ModelParams mp = modelParams(*spec);
-    mp.num_points = settings.model_points;
-    const OrientedModel sparse =
-        in.model.is_mesh ? prepareModel(in.model.mesh, mp) : prepareModel(in.model.cloud, mp);
-    r = runOpencv(sparse, in.scan, settings, instances, o.repeats);
+    r = runOpencv(orientedModel(in, *spec, settings.model_points), in.scan, settings, instances, o.repeats);
   }
   else throw Error(fmt::format("unknown method '{}'", o.run_method));
   rusage usage{};

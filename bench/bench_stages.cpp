@@ -71,9 +71,12 @@ void BM_Normals(benchmark::State& state) {  // plane fits of the sampled points 
 }
 BENCHMARK(BM_Normals)->Unit(benchmark::kMillisecond);
 
-void BM_VoteSubGroup(benchmark::State& state) {  // 4.3-4.4 on the median sub-group, one thread
+/// 4.3-4.4 on the median sub-group: Voter on one thread, ParallelVoter with its points shared
+/// among threads (the same pairs).
+template <class V>
+void BM_VoteSubGroup(benchmark::State& state) {
   const Fixture& f = fixture();
-  Voter voter(f.db);
+  V voter(f.db);
   std::vector<Correspondence> out;
   for (auto _ : state) {
     out.clear();
@@ -82,19 +85,8 @@ void BM_VoteSubGroup(benchmark::State& state) {  // 4.3-4.4 on the median sub-gr
   }
   state.counters["group_points"] = static_cast<double>(f.medianGroup().size());
 }
-BENCHMARK(BM_VoteSubGroup)->Unit(benchmark::kMillisecond);
-
-void BM_VoteSubGroupParallel(benchmark::State& state) {  // the same, its points shared among threads
-  const Fixture& f = fixture();
-  ParallelVoter voter(f.db);
-  std::vector<Correspondence> out;
-  for (auto _ : state) {
-    out.clear();
-    voter.vote(f.scene.points, f.scene.normals, f.medianGroup(), out);
-    benchmark::DoNotOptimize(out.data());
-  }
-}
-BENCHMARK(BM_VoteSubGroupParallel)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_TEMPLATE(BM_VoteSubGroup, Voter)->Unit(benchmark::kMillisecond);
+BENCHMARK_TEMPLATE(BM_VoteSubGroup, ParallelVoter)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 void BM_LocalVotes(benchmark::State& state) {  // the fast preset: every sampled point votes once
   const Fixture& f = fixture();
@@ -108,13 +100,7 @@ void BM_CliqueSearch(benchmark::State& state) {  // 4.5 on the median sub-group'
   const Fixture& f = fixture();
   std::vector<Correspondence> cps;
   Voter(f.db).vote(f.scene.points, f.scene.normals, f.medianGroup(), cps);
-  Graph g(static_cast<int>(cps.size()));
-  for (std::size_t i = 0; i < cps.size(); ++i)
-    for (std::size_t j = i + 1; j < cps.size(); ++j) {
-      const float dm = (f.model.points[cps[i].model] - f.model.points[cps[j].model]).norm();
-      const float ds = (f.scene.points[cps[i].scene] - f.scene.points[cps[j].scene]).norm();
-      if (std::abs(dm - ds) < f.params.e_gmax) g.addEdge(static_cast<int>(i), static_cast<int>(j));
-    }
+  const Graph g = consistencyGraph(cps, f.scene.points, f.model.points, f.params.e_gmax);
   for (auto _ : state) benchmark::DoNotOptimize(maximumClique(g, f.params.clique_work_limit));
   state.counters["vertices"] = static_cast<double>(cps.size());
 }

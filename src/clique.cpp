@@ -2,6 +2,7 @@
 #include <binpose/clique.hpp>
 
 #include <algorithm>
+#include <cmath>
 #include <bit>
 #include <numeric>
 
@@ -99,6 +100,17 @@ CliqueResult maximumClique(const Graph& g, std::uint64_t work_limit) {
   for (int& v : r.vertices) v = order[v];
   std::sort(r.vertices.begin(), r.vertices.end());
   return r;
+}
+
+Graph consistencyGraph(std::span<const Correspondence> cps, const Points& scene, const Points& model, float e_gmax) {
+  Graph g(static_cast<int>(cps.size()));
+  for (std::size_t i = 0; i < cps.size(); ++i)
+    for (std::size_t j = i + 1; j < cps.size(); ++j) {
+      const float dm = (model[cps[i].model] - model[cps[j].model]).norm();
+      const float ds = (scene[cps[i].scene] - scene[cps[j].scene]).norm();
+      if (std::abs(dm - ds) < e_gmax) g.addEdge(static_cast<int>(i), static_cast<int>(j));
+    }
+  return g;
 }
 
 }  // namespace binpose

@@ -15,19 +15,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
-/// Geometric consistency graph (eq. 13-16): CP_i and CP_j are linked when the model and scene
-/// distances between them differ by less than e_gmax.
-Graph consistencyGraph(const std::vector<Correspondence>& cps, const Points& scene, const Points& model, float e_gmax) {
-  Graph g(static_cast<int>(cps.size()));
-  for (std::size_t i = 0; i < cps.size(); ++i)
-    for (std::size_t j = i + 1; j < cps.size(); ++j) {
-      const float dm = (model[cps[i].model] - model[cps[j].model]).norm();
-      const float ds = (scene[cps[i].scene] - scene[cps[j].scene]).norm();
-      if (std::abs(dm - ds) < e_gmax) g.addEdge(static_cast<int>(i), static_cast<int>(j));
-    }
-  return g;
-}
-
 }  // namespace
 
 Detector::Detector(const ModelDatabase& db, const DetectionParams& params)
@@ -155,8 +142,8 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
     if (det.score >= 0.5f)
       for (const auto i : h.support) explained[i] = 1;
     hypotheses.push_back(std::move(h));
-    if (det.score < p.removal_score) continue;
-    if (p.max_instances > 0 && ++confident >= p.max_instances) break;  // enough sure detections  // not sure enough to take its points away
+    if (det.score < p.removal_score) continue;  // not sure enough to take its points away
+    if (p.max_instances > 0 && ++confident >= p.max_instances) break;  // enough sure detections
     // 5.2.6, eq. 39: remove the scene points within sigma_dist of the posed model.
     const Pose inverse = det.pose.inverse();
     const Vec3 centre = det.pose * model_centroid_;

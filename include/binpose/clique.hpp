@@ -1,7 +1,10 @@
 #pragma once
 // Maximum clique of the correspondence graph (thesis 4.5): exact branch and bound on bitsets
 // with greedy-colouring bounds (Tomita & Seki 2003; San Segundo et al. 2011), with a work bound.
+#include <binpose/voting.hpp>
+
 #include <cstdint>
+#include <span>
 #include <vector>
 
 namespace binpose {
@@ -31,6 +34,10 @@ struct CliqueResult {
   bool exact = true;          ///< false when the work bound stopped the search early
   std::uint64_t nodes = 0;    ///< branch-and-bound nodes expanded
 };
+
+/// Geometric consistency graph (eq. 13-16): CP_i and CP_j are linked when the model and scene
+/// distances between them differ by less than e_gmax.
+Graph consistencyGraph(std::span<const Correspondence> cps, const Points& scene, const Points& model, float e_gmax);
 
 /// A maximum clique of g. The search expands at most `work_limit` nodes; if it has to stop,
 /// the best clique found so far is returned with exact = false. Deterministic.

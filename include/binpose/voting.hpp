@@ -52,8 +52,8 @@ class Voter {
   const ModelDatabase& db_;
   int keep_;
   std::uint32_t max_list_;
-  std::vector<std::uint32_t> values_;
-  std::vector<std::uint32_t> keys_;       ///< the keys of one point's features     ///< the accumulator's non-zero values
+  std::vector<std::uint32_t> values_;     ///< the accumulator's non-zero values
+  std::vector<std::uint32_t> keys_;       ///< the keys of one point's features
   std::vector<std::uint16_t> votes_;      ///< A_k, one counter per model point
   std::vector<std::uint32_t> touched_;    ///< model points with a vote, for cheap clearing
 };
