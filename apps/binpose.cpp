@@ -204,7 +204,10 @@ std::string resultJson(const binpose::DetectionResult& r, const binpose::Detecti
                     {"total", r.timing.total_ms}};
   j["scene_points"] = r.scene_points;
   j["sampled_points"] = r.sampled_points;
+  j["plane_points"] = r.plane_points;
   j["subgroups"] = r.subgroups;
+  j["hypotheses"] = r.hypotheses;
+  j["refined"] = r.refined;
   j["params"] = nlohmann::json::parse(binpose::toJson(p));
   return j.dump(2);
 }
@@ -218,8 +221,8 @@ int runDetect(const DetectOptions& o) {
   const binpose::Detector detector(db, params);
   const binpose::DetectionResult r = detector.detect(scan);
 
-  fmt::print("scene {}: {} points, {} sampled, {} sub-groups; model {:.1f} mm across\n", o.scene, r.scene_points,
-             r.sampled_points, r.subgroups, diameter);
+  fmt::print("scene {}: {} points, {} sampled ({} on the bin's planes, left out), {} sub-groups; model {:.1f} mm across\n",
+             o.scene, r.scene_points, r.sampled_points, r.plane_points, r.subgroups, diameter);
   fmt::print("{:>4}  {:>6}  {:>5}  {:>27}  {:>8}\n", "rank", "score", "|C|", "position (mm)", "angle");
   for (std::size_t i = 0; i < r.detections.size(); ++i) {
     const auto& d = r.detections[i];
@@ -228,8 +231,9 @@ int runDetect(const DetectOptions& o) {
     fmt::print("{:>4}  {:>6.3f}  {:>5}  {:>8.2f} {:>8.2f} {:>9.2f}  {:>7.2f}d\n", i + 1, d.score, d.correspondences, t.x(),
                t.y(), t.z(), angle);
   }
-  fmt::print("{} detections in {:.1f} ms (preprocess {:.1f}, vote {:.1f}, match {:.1f}, refine {:.1f})\n", r.detections.size(),
-             r.timing.total_ms, r.timing.preprocess_ms, r.timing.vote_ms, r.timing.match_ms, r.timing.refine_ms);
+  fmt::print("{} detections in {:.1f} ms (preprocess {:.1f}, vote {:.1f}, match {:.1f}, refine {:.1f}); {} poses verified, {} refined\n",
+             r.detections.size(), r.timing.total_ms, r.timing.preprocess_ms, r.timing.vote_ms, r.timing.match_ms,
+             r.timing.refine_ms, r.hypotheses, r.refined);
   if (!o.render.empty()) {
     binpose::renderDetections(o.render, scan, r.detections, db.model().points, db.model().normals, params.viewpoint);
     fmt::print("picture: {}\n", o.render);

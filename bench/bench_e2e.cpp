@@ -76,6 +76,7 @@ struct Options {
   int repeats = 5;
   int timeout_s = 1800;  ///< per input and method
   std::vector<std::string> inputs, methods = {"binpose", "binpose-fast", "binpose-thesis", "opencv-sample", "opencv-tuned"};
+  std::string params;  ///< JSON file of parameter overrides for binpose, in the thesis's 60 mm units
   std::string run_input, run_method;  // child mode
 };
 
@@ -182,12 +183,19 @@ struct Outcome {
   std::vector<Pose> poses;
 };
 
-Outcome runBinpose(const OrientedModel& model, const PointCloud& scan, const std::string& preset, int repeats) {
+Outcome runBinpose(const OrientedModel& model, const PointCloud& scan, const std::string& preset, int repeats,
+                   const std::string& params_file) {
   Outcome out;
   const auto t0 = Clock::now();
   const ModelDatabase db = ModelDatabase::build(model, defaultQuantization(model.diameter));
   out.train_ms = msSince(t0);
-  const Detector detector(db, scaledToModel(presetByName(preset), model.diameter));
+  DetectionParams params = presetByName(preset);
+  if (!params_file.empty()) {  // overrides before scaling: the same file serves parts of any size
+    std::ifstream in(params_file);
+    if (!in) throw Error(fmt::format("cannot read {}", params_file));
+    applyJson(params, std::string(std::istreambuf_iterator<char>(in), {}), params_file);
+  }
+  const Detector detector(db, scaledToModel(params, model.diameter));
   for (int r = 0; r < repeats; ++r) {
     const auto t = Clock::now();
     const DetectionResult result = detector.detect(scan);
@@ -286,8 +294,8 @@ int runOne(const Options& o) {
   const long baseline = residentKiB();
   const std::size_t instances = in.truth.instances.size();
   Outcome r;
-  if (o.run_method == "binpose") r = runBinpose(model, in.scan, "default", o.repeats);
-  else if (o.run_method.starts_with("binpose-")) r = runBinpose(model, in.scan, o.run_method.substr(8), o.repeats);
+  if (o.run_method == "binpose") r = runBinpose(model, in.scan, "default", o.repeats, o.params);
+  else if (o.run_method.starts_with("binpose-")) r = runBinpose(model, in.scan, o.run_method.substr(8), o.repeats, o.params);
   else if (o.run_method.starts_with("opencv")) {
     const OpencvSettings settings = opencvSettings(o.run_method, instances);
     r = runOpencv(orientedModel(in, *spec, settings.model_points), in.scan, settings, instances, o.repeats);
@@ -329,8 +337,11 @@ json runChild(const std::string& self, const Options& o, const std::string& inpu
     close(fds[0]);
     close(fds[1]);
     alarm(static_cast<unsigned>(o.timeout_s));  // kept across exec: a run past it is killed
-    execl(self.c_str(), self.c_str(), "--data", o.data.c_str(), "--cache", o.cache.c_str(), "--repeats", repeats.c_str(),
-          "--run", input.c_str(), method.c_str(), static_cast<char*>(nullptr));
+    std::vector<const char*> args = {self.c_str(), "--data", o.data.c_str(), "--cache", o.cache.c_str(),
+                                     "--repeats", repeats.c_str(), "--run", input.c_str(), method.c_str()};
+    if (!o.params.empty()) args.insert(args.end(), {"--params", o.params.c_str()});
+    args.push_back(nullptr);
+    execv(self.c_str(), const_cast<char* const*>(args.data()));
     _exit(127);
   }
   close(fds[1]);
@@ -405,6 +416,8 @@ int main(int argc, char** argv) {
   app.add_option("--inputs", o.inputs, "Inputs to run (default: all)")->delimiter(',');
   app.add_option("--methods", o.methods, "Methods to run")->delimiter(',')->capture_default_str();
   app.add_option("--timeout", o.timeout_s, "Seconds allowed per input and method")->capture_default_str();
+  app.add_option("--params", o.params,
+                 "JSON file of binpose parameter overrides, in the thesis's units (60 mm part), applied before scaling");
   std::vector<std::string> run;
   app.add_option("--run", run, "Child mode: INPUT METHOD")->expected(2);
   CLI11_PARSE(app, argc, argv);

@@ -2,18 +2,39 @@
 #include <binpose/detector.hpp>
 
 #include <binpose/clique.hpp>
+#include <binpose/planes.hpp>
 #include <binpose/refine.hpp>
 #include <binpose/scene.hpp>
 #include <binpose/voting.hpp>
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 
 namespace binpose {
 namespace {
 
 using Clock = std::chrono::steady_clock;
 double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+
+/// The scene without the points of the bin's floor and walls.
+PreparedScene withoutPlanes(PreparedScene scene, const DetectionParams& p) {
+  const float spacing = 1.0f / std::sqrt(p.rho_sub);
+  PlaneParams planes;
+  planes.min_area = p.plane_min_area;
+  planes.tolerance = p.plane_tolerance;
+  planes.link = 2.5f * spacing;  // neighbours on a plane are one sample spacing apart
+  planes.seed = p.seed;
+  const std::vector<char> flat = largePlanes(scene.points, scene.normals, p.rho_sub, planes);
+  PreparedScene kept;
+  for (std::size_t i = 0; i < flat.size(); ++i) {
+    if (flat[i]) continue;
+    kept.points.push_back(scene.points[i]);
+    kept.normals.push_back(scene.normals[i]);
+    kept.scan_index.push_back(scene.scan_index[i]);
+  }
+  return kept;
+}
 
 }  // namespace
 
@@ -25,6 +46,13 @@ Detector::Detector(const ModelDatabase& db, const DetectionParams& params)
   for (const Vec3& p : m) model_centroid_ += p;
   model_centroid_ /= static_cast<float>(m.size());
   for (const Vec3& p : m) model_radius_ = std::max(model_radius_, (p - model_centroid_).norm());
+  // Every stride-th model point: the Poisson-disk order is spatially random, so an even share.
+  const std::size_t stride =
+      params_.icp_model_points > 0 ? (m.size() + params_.icp_model_points - 1) / params_.icp_model_points : 1;
+  for (std::size_t i = 0; i < m.size(); i += std::max<std::size_t>(1, stride)) {
+    icp_points_.push_back(m[i]);
+    icp_normals_.push_back(db.model().normals[i]);
+  }
 }
 
 float Detector::overlap(const Pose& a, const Pose& b) const {
@@ -68,19 +96,23 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   const Points& model_normals = db_.model().normals;
 
   const KdTree scan_tree(scan.points);
-  const PreparedScene scene = prepareScene(scan.points, scan_tree, p);
+  PreparedScene scene = prepareScene(scan.points, scan_tree, p);
+  result.sampled_points = scene.points.size();
+  if (p.remove_planes) scene = withoutPlanes(std::move(scene), p);
+  result.plane_points = result.sampled_points - scene.points.size();
   const SceneEvidence evidence(scan.points, scan_tree, p.viewpoint);
   const auto groups = makeSubGroups(scene.points, p.eta, p.r, static_cast<std::size_t>(p.C_n));
-  result.sampled_points = scene.points.size();
   result.subgroups = groups.size();
   result.timing.preprocess_ms = msSince(t0);
 
   const auto max_list = static_cast<std::uint32_t>(p.max_key_share * static_cast<float>(model.size()));
   std::vector<std::vector<std::uint32_t>> local;  // each point's candidates, when voting once
   if (p.local_votes) {
-    std::vector<std::uint32_t> voters;
+    std::vector<std::uint32_t> voters, partners;
     if (p.voter_spacing > 0) voters = voxelSubsample(scene.points, p.voter_spacing);
-    local = voteNeighbourhoods(db_, scene.points, scene.normals, p.vote_radius, p.candidates_per_point, max_list, voters);
+    if (p.partner_spacing > 0) partners = voxelSubsample(scene.points, p.partner_spacing);
+    local = voteNeighbourhoods(db_, scene.points, scene.normals, p.vote_radius, p.candidates_per_point, max_list, voters,
+                               partners);
   }
   result.timing.vote_ms = msSince(t0) - result.timing.preprocess_ms;
 
@@ -126,9 +158,16 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
     }
 
     const auto t_refine = Clock::now();
+    ++result.hypotheses;
+    if (p.verify && p.prescreen &&
+        evidence.evaluate(det.pose, icp_points_, icp_normals_, p.icp_max_distance, 0.0f).score() < p.min_score) {
+      refine_ms += msSince(t_refine);
+      continue;  // far from the scan even at the ICP gate: not worth refining
+    }
+    ++result.refined;
     if (p.refine) {
       const IcpParams icp{p.icp_iterations, p.icp_max_distance, p.verify_tolerance, p.viewpoint};
-      det.pose = refinePose(det.pose, model, model_normals, scan.points, scan_tree, icp);
+      det.pose = refinePose(det.pose, icp_points_, icp_normals_, scan.points, scan_tree, icp);
     }
     Hypothesis h;
     det.score = evidence.evaluate(det.pose, model, model_normals, p.verify_tolerance, db_.model().sample_radius, &h.support)

@@ -27,13 +27,19 @@ void visit(json& j, DetectionParams& p, bool write) {
   field(j, "C_n", p.C_n, write);
   field(j, "sigma_dist", p.sigma_dist, write);
   field(j, "k_normals", p.k_normals, write);
+  field(j, "remove_planes", p.remove_planes, write);
+  field(j, "plane_min_area", p.plane_min_area, write);
+  field(j, "plane_tolerance", p.plane_tolerance, write);
   field(j, "candidates_per_point", p.candidates_per_point, write);
   field(j, "local_votes", p.local_votes, write);
   field(j, "vote_radius", p.vote_radius, write);
+  field(j, "partner_spacing", p.partner_spacing, write);
   field(j, "voter_spacing", p.voter_spacing, write);
   field(j, "max_key_share", p.max_key_share, write);
   field(j, "refine", p.refine, write);
   field(j, "icp_iterations", p.icp_iterations, write);
+  field(j, "icp_model_points", p.icp_model_points, write);
+  field(j, "prescreen", p.prescreen, write);
   field(j, "icp_max_distance", p.icp_max_distance, write);
   field(j, "verify", p.verify, write);
   field(j, "verify_tolerance", p.verify_tolerance, write);
@@ -74,6 +80,8 @@ DetectionParams thesisPreset() {
   p.candidates_per_point = 1;
   p.local_votes = false;
   p.max_key_share = 1.0f;
+  p.prescreen = false;
+  p.remove_planes = false;
   return p;
 }
 
@@ -99,6 +107,9 @@ DetectionParams scaledToModel(const DetectionParams& params, float model_diamete
   p.r *= s;
   p.vote_radius *= s;
   p.voter_spacing *= s;
+  p.partner_spacing *= s;
+  p.plane_min_area *= s * s;
+  p.plane_tolerance *= s;
   p.eta *= s;
   p.e_gmax *= s;
   p.sigma_dist *= s;
@@ -113,6 +124,9 @@ void validate(const DetectionParams& p) {
   positive(p.rho_sub, "rho_sub", "density in points/mm^2");
   positive(p.eta, "eta (grid spacing)", "length in mm");
   positive(p.vote_radius, "vote_radius", "length in mm");
+  positive(p.plane_min_area, "plane_min_area", "area in mm^2");
+  positive(p.plane_tolerance, "plane_tolerance", "distance in mm");
+  if (!(p.partner_spacing >= 0) || !std::isfinite(p.partner_spacing)) throw Error(fmt::format("partner_spacing must be >= 0 mm, got {}", p.partner_spacing));
   if (!(p.voter_spacing >= 0) || !std::isfinite(p.voter_spacing)) throw Error(fmt::format("voter_spacing must be >= 0 mm, got {}", p.voter_spacing));
   positive(p.e_gmax, "e_gmax", "length in mm");
   positive(p.sigma_dist, "sigma_dist", "length in mm");
@@ -120,6 +134,7 @@ void validate(const DetectionParams& p) {
   positive(p.verify_tolerance, "verify_tolerance", "length in mm");
   if (p.C_n < 3) throw Error(fmt::format("C_n must be >= 3 (a pose needs 3 correspondences), got {}", p.C_n));
   if (p.k_normals < 3 || p.k_normals > 200) throw Error(fmt::format("k_normals must lie in [3, 200], got {}", p.k_normals));
+  if (p.icp_model_points < 0) throw Error(fmt::format("icp_model_points must be >= 0, got {}", p.icp_model_points));
   if (p.icp_iterations < 0 || p.icp_iterations > 1000) throw Error(fmt::format("icp_iterations must lie in [0, 1000], got {}", p.icp_iterations));
   if (!(p.min_score >= 0 && p.min_score <= 1)) throw Error(fmt::format("min_score must lie in [0, 1], got {}", p.min_score));
   if (!(p.removal_score >= 0 && p.removal_score <= 1)) throw Error(fmt::format("removal_score must lie in [0, 1], got {}", p.removal_score));

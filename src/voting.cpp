@@ -123,16 +123,20 @@ void ParallelVoter::vote(const Points& points, const Points& normals, std::span<
 
 std::vector<std::vector<std::uint32_t>> voteNeighbourhoods(const ModelDatabase& db, const Points& points,
                                                            const Points& normals, float radius, int keep,
-                                                           std::uint32_t max_list, std::span<const std::uint32_t> voters) {
+                                                           std::uint32_t max_list, std::span<const std::uint32_t> voters,
+                                                           std::span<const std::uint32_t> partners) {
   std::vector<std::vector<std::uint32_t>> result(points.size());
   if (points.empty()) return result;
   std::vector<std::uint32_t> all;
-  if (voters.empty()) {
+  if (voters.empty() || partners.empty()) {
     all.resize(points.size());
     std::iota(all.begin(), all.end(), 0u);
-    voters = all;
   }
-  const KdTree tree(points);
+  if (voters.empty()) voters = all;
+  if (partners.empty()) partners = all;
+  Points partner_points;
+  for (const auto o : partners) partner_points.push_back(points[o]);
+  const KdTree tree(partner_points);
   struct Local {
     Voter voter;
     std::vector<std::pair<std::uint32_t, float>> found;
@@ -147,7 +151,7 @@ std::vector<std::vector<std::uint32_t>> voteNeighbourhoods(const ModelDatabase& 
       tree.radius(points[k], radius, l.found);
       if (l.found.size() >= 65535) throw Error(fmt::format("{} points within {} mm of a point: too many to vote", l.found.size(), radius));
       l.partners.clear();
-      for (const auto& [o, d2] : l.found) l.partners.push_back(o);
+      for (const auto& [o, d2] : l.found) l.partners.push_back(partners[o]);
       std::sort(l.partners.begin(), l.partners.end());  // the same sums whatever the tree's order
       l.out.clear();
       l.voter.votePoint(points, normals, k, l.partners, l.out);

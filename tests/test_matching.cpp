@@ -129,6 +129,37 @@ TEST(Clique, ThirtyVerticesAndAPlantedClique) {
   }
 }
 
+TEST(Clique, ConsistencyGraphFollowsEquations13To16) {
+  // A rigid copy of 60 model points (all consistent) plus 90 random pairs, over three bit words.
+  Rng rng(12);
+  Points model, scene;
+  for (int i = 0; i < 100; ++i) model.emplace_back(Vec3(rng.uniform(), rng.uniform(), rng.uniform()) * 60.0f);
+  Pose pose = Pose::Identity();
+  pose.linear() = Eigen::AngleAxisf(0.7f, Vec3(1, 2, 3).normalized()).toRotationMatrix();
+  pose.translation() = Vec3(5, -20, 300);
+  std::vector<Correspondence> cps;
+  for (std::uint32_t i = 0; i < 150; ++i) {
+    const auto m = static_cast<std::uint32_t>(i < 60 ? i : rng.below(100));
+    scene.push_back(i < 60 ? Vec3(pose * model[m]) : Vec3(pose * Vec3(Vec3(rng.uniform(), rng.uniform(), rng.uniform()) * 60.0f)));
+    cps.push_back({i, m});
+  }
+  const float e_gmax = 1.5f;
+  const Graph g = consistencyGraph(cps, scene, model, e_gmax);
+  int edges = 0;
+  for (int a = 0; a < 150; ++a) {
+    EXPECT_FALSE(g.adjacent(a, a));
+    for (int b = 0; b < 150; ++b) {
+      if (a == b) continue;
+      const float dm = (model[cps[a].model] - model[cps[b].model]).norm();
+      const float ds = (scene[cps[a].scene] - scene[cps[b].scene]).norm();
+      ASSERT_EQ(g.adjacent(a, b), std::abs(dm - ds) < e_gmax) << a << " " << b;
+      edges += g.adjacent(a, b);
+    }
+  }
+  EXPECT_GT(edges, 60 * 59);  // the rigid copy is one clique
+  EXPECT_EQ(maximumClique(g).vertices.size(), 60u);
+}
+
 TEST(Clique, WorkBoundStopsEarly) {
   Rng rng(8);
   const int n = 200;

@@ -20,6 +20,8 @@ class Graph {
   }
   [[nodiscard]] bool adjacent(int a, int b) const { return (row(a)[b / 64] >> (b % 64)) & 1ull; }
   [[nodiscard]] const std::uint64_t* row(int v) const { return bits_.data() + static_cast<std::size_t>(v) * words_; }
+  /// Row v to write whole words at once; the caller keeps the graph symmetric and v not its own neighbour.
+  [[nodiscard]] std::uint64_t* mutableRow(int v) { return bits_.data() + static_cast<std::size_t>(v) * words_; }
   [[nodiscard]] int size() const { return n_; }
   [[nodiscard]] int words() const { return words_; }
   [[nodiscard]] int degree(int v) const;

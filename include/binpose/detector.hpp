@@ -26,8 +26,11 @@ struct DetectionResult {
   DetectionTiming timing;
   std::size_t scene_points = 0;    ///< points of the scan
   std::size_t sampled_points = 0;  ///< oriented points after sub-sampling
+  std::size_t plane_points = 0;    ///< ... of them on large planes (floor, walls), left out of voting
   std::size_t subgroups = 0;       ///< sub-groups created
   std::size_t subgroups_run = 0;   ///< sub-groups that went through voting
+  std::size_t hypotheses = 0;      ///< clique poses that reached verification
+  std::size_t refined = 0;         ///< ... that passed the pre-screen and went through ICP
 };
 
 /// A detection with the scan points that support it.
@@ -57,6 +60,7 @@ class Detector {
   const ModelDatabase& db_;
   DetectionParams params_;
   KdTree model_tree_;
+  Points icp_points_, icp_normals_;  ///< the model points ICP pairs up (icp_model_points of them)
   Vec3 model_centroid_;
   float model_radius_ = 0;  ///< largest distance of a model point from the centroid
 };

@@ -27,6 +27,12 @@ struct DetectionParams {
   Subsampling subsampling = Subsampling::Voxel;
 
   // --- beyond the thesis (each switchable; the thesis preset turns them off) ----------------
+  /// The bin's floor and walls (connected flat patches of at least plane_min_area) taken out of
+  /// the sampled scene before voting (planes.hpp). They stay in the scan for ICP and verification.
+  bool remove_planes = true;
+  /// mm^2; over twice the largest flat face a 60 mm part can have (a 60 mm disc, 2827 mm^2)
+  float plane_min_area = 6000.0f;
+  float plane_tolerance = 1.5f;   ///< largest distance of a plane's point from it, mm
   int candidates_per_point = 1;   ///< model points kept per scene point: 1 is eq. 12's maximum; about 8 for
                                   ///< bodies of revolution, whose symmetric points share their votes
   /// Each scene point votes once, with the points within vote_radius of it, and its sub-groups reuse its
@@ -35,12 +41,21 @@ struct DetectionParams {
   /// With local votes, only one point per cube of this side votes (the others are its partners):
   /// fewer, evenly spread reference points, mm. 0: every point votes.
   float voter_spacing = 0.0f;
+  /// With local votes, a point's partners are only one point per cube of this side (a coarser
+  /// cloud: fewer features per voter, the same reference points), mm. 0: every point is a partner.
+  float partner_spacing = 0.0f;
   float vote_radius = 40.0f;  ///< partners of a point's local votes lie within this, mm (about 2/3 of the part)
   /// Features whose key lists more than this share of the model's points are not counted (the
   /// pairs of a plane, found on nearly every flat region: many votes, little information). 1: all.
   float max_key_share = 1.0f;
   bool refine = true;             ///< point-to-plane ICP of each pose against the full scan
   int icp_iterations = 20;
+  /// ICP pairs up at most about this many model points (an even share of them): ICP's cost is
+  /// one scan-tree query per model point and iteration. 0: all of them.
+  int icp_model_points = 1000;
+  /// Before ICP, a pose whose score at the ICP gate (icp_max_distance) on those points is below
+  /// min_score is dropped: a wrong clique costs one pass instead of icp_iterations.
+  bool prescreen = true;
   float icp_max_distance = 3.0f;  ///< ICP correspondence gate at the start, mm (shrinks as it converges)
   bool verify = true;             ///< score = share of the posed model's sensor-facing points the scan supports
   float verify_tolerance = 1.0f;  ///< distance within which a scan point supports a model point, mm
@@ -62,7 +77,7 @@ DetectionParams thesisPreset();
 /// binpose's defaults.
 DetectionParams defaultPreset();
 /// binpose's defaults, but each scene point votes once (local_votes) and keeps its 8 best model
-/// points: 3-4x faster; better on parts without rotational symmetry, worse on bodies of revolution.
+/// points: 2-3x faster; better on parts without rotational symmetry, worse on bodies of revolution.
 DetectionParams fastPreset();
 /// A preset by name: "thesis", "default" or "fast".
 DetectionParams presetByName(const std::string& name);

@@ -74,10 +74,12 @@ class ParallelVoter {
 /// Beyond the thesis: every scene point votes once, with the features to the points within
 /// `radius` of it (instead of once per sub-group it belongs to, about 9 times with the thesis's
 /// eta and r). The candidate model points of each point, in parallel; the same whatever the
-/// thread count. Only the points listed in `voters` vote (all when empty); the others are partners.
+/// thread count. Only the points listed in `voters` vote (all when empty); only those listed in
+/// `partners` are paired with them (all when empty).
 std::vector<std::vector<std::uint32_t>> voteNeighbourhoods(const ModelDatabase& db, const Points& points,
                                                            const Points& normals, float radius, int keep,
                                                            std::uint32_t max_list = UINT32_MAX,
-                                                           std::span<const std::uint32_t> voters = {});
+                                                           std::span<const std::uint32_t> voters = {},
+                                                           std::span<const std::uint32_t> partners = {});
 
 }  // namespace binpose

@@ -1,0 +1,35 @@
+#pragma once
+// Beyond the thesis: the bin's floor and walls (and a table under the parts) taken out of the
+// sampled scene before voting. Their points pair with nothing on the part, yet cost as much to
+// vote as the part's own points and feed the clique search with wrong correspondences.
+#include <binpose/types.hpp>
+
+#include <cstdint>
+#include <vector>
+
+namespace binpose {
+
+struct PlaneParams {
+  float min_area = 6000.0f;   ///< smallest connected flat patch removed, mm^2 (larger than any face of the part)
+  float tolerance = 1.5f;     ///< largest distance of a point from the plane, mm
+  float max_angle = 0.35f;    ///< largest angle of a point's normal from the plane's normal, radians (20 degrees)
+  float link = 10.0f;         ///< points closer than this are connected within one patch, mm
+  /// Background only: a plane with more than this share of the points behind it (seen through it,
+  /// farther than 3 tolerances on the side away from the sensor) is a layer of parts, not the bin.
+  float max_behind = 0.02f;
+  int max_planes = 8;         ///< planes looked for, largest first
+  int trials = 300;           ///< RANSAC hypotheses per plane (one oriented point each)
+  std::uint64_t seed = 1;
+};
+
+/// Marks the points of large planes: RANSAC on oriented points (each hypothesis is the plane of
+/// one point and its normal), then the inliers split into connected patches, and every patch of
+/// at least `min_area` (at the points' density `density`, points/mm^2) removed. Only background
+/// planes go, with (almost) nothing behind them: the floor, the walls, a table; the tops of a
+/// layer of parts lying flat, touching one another, have the floor behind them and stay, and
+/// coplanar faces of parts that do not touch stay. Normals face the sensor. Returns one flag per
+/// point: 1 on a removed plane.
+/// Deterministic for a given seed.
+std::vector<char> largePlanes(const Points& points, const Points& normals, float density, const PlaneParams& params);
+
+}  // namespace binpose

@@ -1,0 +1,98 @@
+// Large planes (bin floor, walls, table) found by one-point RANSAC and removed by patch.
+#include <binpose/planes.hpp>
+
+#include <binpose/geometry.hpp>
+#include <binpose/kdtree.hpp>
+
+#include <cmath>
+#include <fmt/format.h>
+
+namespace binpose {
+namespace {
+
+bool onPlane(const Vec3& p, const Vec3& n, const Vec3& plane_n, float plane_d, float tolerance, float min_cos) {
+  return std::abs(plane_n.dot(p) - plane_d) <= tolerance && std::abs(plane_n.dot(n)) >= min_cos;
+}
+
+/// Connected patches of `members` (links shorter than `link`), as lists of indices into points.
+std::vector<std::vector<std::uint32_t>> patches(const Points& points, const std::vector<std::uint32_t>& members, float link) {
+  Points sub;
+  for (const auto i : members) sub.push_back(points[i]);
+  const KdTree tree(sub);
+  std::vector<char> seen(sub.size(), 0);
+  std::vector<std::vector<std::uint32_t>> out;
+  std::vector<std::uint32_t> stack;
+  std::vector<std::pair<std::uint32_t, float>> found;
+  for (std::uint32_t s = 0; s < sub.size(); ++s) {
+    if (seen[s]) continue;
+    std::vector<std::uint32_t> patch;
+    seen[s] = 1;
+    stack.assign(1, s);
+    while (!stack.empty()) {  // flood fill
+      const std::uint32_t a = stack.back();
+      stack.pop_back();
+      patch.push_back(members[a]);
+      tree.radius(sub[a], link, found);
+      for (const auto& [b, d2] : found)
+        if (!seen[b]) {
+          seen[b] = 1;
+          stack.push_back(b);
+        }
+    }
+    out.push_back(std::move(patch));
+  }
+  return out;
+}
+
+}  // namespace
+
+std::vector<char> largePlanes(const Points& points, const Points& normals, float density, const PlaneParams& params) {
+  if (points.size() != normals.size()) throw Error("largePlanes: one normal per point needed");
+  if (!(density > 0) || !(params.min_area > 0) || !(params.tolerance > 0) || !(params.link > 0))
+    throw Error(fmt::format("plane removal needs positive density, area, tolerance and link, got {}, {}, {}, {}", density,
+                            params.min_area, params.tolerance, params.link));
+  std::vector<char> plane(points.size(), 0), tried(points.size(), 0);
+  const auto min_count = static_cast<std::size_t>(std::ceil(params.min_area * density));
+  const float min_cos = std::cos(params.max_angle);
+  Rng rng(params.seed);
+  std::vector<std::uint32_t> left, probe, inliers;
+  for (int round = 0; round < params.max_planes; ++round) {
+    left.clear();
+    for (std::uint32_t i = 0; i < points.size(); ++i)
+      if (!plane[i] && !tried[i]) left.push_back(i);
+    if (left.size() < min_count) break;
+    // Hypotheses scored on an even sample of at most 1000 of the points left.
+    probe.clear();
+    const std::size_t step = std::max<std::size_t>(1, left.size() / 1000);
+    for (std::size_t k = 0; k < left.size(); k += step) probe.push_back(left[k]);
+    std::size_t best_count = 0;
+    Vec3 best_n = Vec3::UnitZ();
+    float best_d = 0;
+    for (int t = 0; t < params.trials; ++t) {
+      const std::uint32_t s = left[rng.below(left.size())];
+      const Vec3& n = normals[s];
+      const float d = n.dot(points[s]);
+      std::size_t count = 0;
+      for (const auto i : probe) count += onPlane(points[i], normals[i], n, d, params.tolerance, min_cos);
+      if (count > best_count) {
+        best_count = count;
+        best_n = n;
+        best_d = d;
+      }
+    }
+    inliers.clear();
+    for (const auto i : left)
+      if (onPlane(points[i], normals[i], best_n, best_d, params.tolerance, min_cos)) inliers.push_back(i);
+    if (inliers.size() < min_count) break;  // the largest plane left is too small: done
+    for (const auto i : inliers) tried[i] = 1;  // small patches of it stay in the scene, and are not tried again
+    std::size_t behind = 0;
+    for (const Vec3& p : points) behind += best_n.dot(p) - best_d < -3.0f * params.tolerance;
+    if (static_cast<float>(behind) > params.max_behind * static_cast<float>(points.size())) continue;  // not background
+    for (const auto& patch : patches(points, inliers, params.link))
+      if (patch.size() >= min_count)
+        for (const auto i : patch) plane[i] = 1;
+  }
+  return plane;
+}
+
+}  // namespace binpose
