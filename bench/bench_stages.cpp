@@ -5,6 +5,7 @@
 #include <binpose/model.hpp>
 #include <binpose/model_database.hpp>
 #include <binpose/normals.hpp>
+#include <binpose/planes.hpp>
 #include <binpose/refine.hpp>
 #include <binpose/scene.hpp>
 #include <binpose/shapes.hpp>
@@ -13,6 +14,7 @@
 
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <cmath>
 
 using namespace binpose;
@@ -71,6 +73,22 @@ void BM_Normals(benchmark::State& state) {  // plane fits of the sampled points 
 }
 BENCHMARK(BM_Normals)->Unit(benchmark::kMillisecond);
 
+void BM_Planes(benchmark::State& state) {  // the bin's floor and walls found in the sampled scene
+  const Fixture& f = fixture();
+  PlaneParams planes;
+  planes.min_area = f.params.plane_min_area;
+  planes.tolerance = f.params.plane_tolerance;
+  planes.link = 2.5f / std::sqrt(f.params.rho_sub);
+  std::size_t flat = 0;
+  for (auto _ : state) {
+    const auto flags = largePlanes(f.scene.points, f.scene.normals, f.params.rho_sub, planes);
+    flat = static_cast<std::size_t>(std::count(flags.begin(), flags.end(), 1));
+  }
+  state.counters["points"] = static_cast<double>(f.scene.points.size());
+  state.counters["on_planes"] = static_cast<double>(flat);
+}
+BENCHMARK(BM_Planes)->Unit(benchmark::kMillisecond);
+
 /// 4.3-4.4 on the median sub-group: Voter on one thread, ParallelVoter with its points shared
 /// among threads (the same pairs).
 template <class V>
@@ -113,10 +131,19 @@ void BM_Refine(benchmark::State& state) {  // point-to-plane ICP from 1 mm and 2
   start.translation() += Vec3(0.6f, -0.5f, 0.6f);
   start.linear() = start.linear() * Eigen::AngleAxisf(0.035f, Vec3(1, 1, 0).normalized()).toRotationMatrix();
   const IcpParams icp{f.params.icp_iterations, f.params.icp_max_distance, f.params.verify_tolerance, Vec3::Zero()};
+  // Every stride-th model point, as the detector takes icp_model_points of them (0: all).
+  const auto wanted = static_cast<std::size_t>(state.range(0));
+  const std::size_t stride = wanted > 0 ? (f.model.points.size() + wanted - 1) / wanted : 1;
+  Points points, normals;
+  for (std::size_t i = 0; i < f.model.points.size(); i += stride) {
+    points.push_back(f.model.points[i]);
+    normals.push_back(f.model.normals[i]);
+  }
   for (auto _ : state)
-    benchmark::DoNotOptimize(refinePose(start, f.model.points, f.model.normals, f.bin.cloud.points, f.scan_tree, icp));
+    benchmark::DoNotOptimize(refinePose(start, points, normals, f.bin.cloud.points, f.scan_tree, icp));
+  state.counters["model_points"] = static_cast<double>(points.size());
 }
-BENCHMARK(BM_Refine)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Refine)->Arg(0)->Arg(1000)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 

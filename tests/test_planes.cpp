@@ -1,0 +1,95 @@
+// Background planes (planes.hpp): the bin's floor and walls go, parts' faces stay.
+#include <binpose/geometry.hpp>
+#include <binpose/planes.hpp>
+
+#include "synthetic.hpp"
+
+#include <gtest/gtest.h>
+
+using namespace binpose;
+
+namespace {
+
+constexpr float kSpacing = 4.0f;  // mm between samples: density 1/16 points per mm^2
+
+/// A bin seen from a sensor at the origin looking along +z: a floor at z = 500 and a wall at
+/// x = 100 (both facing the sensor), three flat parts touching side by side with their tops at
+/// z = 480 (a connected, coplanar layer of 3 x 2463 mm^2), and one small flat top at z = 450.
+struct Bin {
+  Points points, normals;
+  std::vector<int> kind;  // 0 floor, 1 wall, 2 layer of part tops, 3 small top
+  void add(const Vec3& p, const Vec3& n, int k, Rng& rng) {
+    points.push_back(p + n * (0.2f * test::gaussian(rng)));  // 0.2 mm noise along the normal
+    normals.push_back(n);
+    kind.push_back(k);
+  }
+};
+
+bool onDisc(float x, float y) {
+  for (const float cx : {-56.0f, 0.0f, 56.0f})
+    if ((x - cx) * (x - cx) + y * y <= 28.0f * 28.0f) return true;
+  return false;
+}
+
+Bin makeBin() {
+  Bin bin;
+  Rng rng(3);
+  for (float x = -100; x <= 100; x += kSpacing)
+    for (float y = -100; y <= 100; y += kSpacing) {
+      if (onDisc(x, y)) bin.add(Vec3(x, y, 480), Vec3(0, 0, -1), 2, rng);  // the floor beneath is hidden
+      else if (std::abs(x + 70) <= 20 && std::abs(y - 70) <= 20) bin.add(Vec3(x, y, 450), Vec3(0, 0, -1), 3, rng);
+      else bin.add(Vec3(x, y, 500), Vec3(0, 0, -1), 0, rng);
+    }
+  for (float z = 400; z < 500; z += kSpacing)
+    for (float y = -100; y <= 100; y += kSpacing) bin.add(Vec3(100, y, z), Vec3(-1, 0, 0), 1, rng);
+  return bin;
+}
+
+}  // namespace
+
+TEST(Planes, FloorAndWallGoTheLayerOfPartsStays) {
+  const Bin bin = makeBin();
+  const std::vector<char> flat = largePlanes(bin.points, bin.normals, 1.0f / (kSpacing * kSpacing), PlaneParams{});
+  ASSERT_EQ(flat.size(), bin.points.size());
+  int count[4] = {0, 0, 0, 0}, removed[4] = {0, 0, 0, 0};
+  for (std::size_t i = 0; i < flat.size(); ++i) {
+    ++count[bin.kind[i]];
+    removed[bin.kind[i]] += flat[i];
+  }
+  EXPECT_GE(removed[0], 0.99 * count[0]) << "floor";
+  EXPECT_GE(removed[1], 0.99 * count[1]) << "wall";
+  EXPECT_GT(count[2] * kSpacing * kSpacing, 6000.0f) << "the layer is larger than min_area: only the floor behind it saves it";
+  EXPECT_EQ(removed[2], 0) << "layer of part tops";
+  EXPECT_EQ(removed[3], 0) << "small top";
+}
+
+TEST(Planes, ASmallFlatTopAloneStays) {
+  const Bin bin = makeBin();
+  Bin parts;
+  for (std::size_t i = 0; i < bin.points.size(); ++i)
+    if (bin.kind[i] == 3) {
+      parts.points.push_back(bin.points[i]);
+      parts.normals.push_back(bin.normals[i]);
+      parts.kind.push_back(3);
+    }
+  const std::vector<char> flat = largePlanes(parts.points, parts.normals, 1.0f / (kSpacing * kSpacing), PlaneParams{});
+  EXPECT_EQ(std::count(flat.begin(), flat.end(), 1), 0) << "a 1600 mm^2 top is below min_area";
+}
+
+TEST(Planes, SameResultForTheSameSeed) {
+  const Bin bin = makeBin();
+  const float density = 1.0f / (kSpacing * kSpacing);
+  EXPECT_EQ(largePlanes(bin.points, bin.normals, density, PlaneParams{}),
+            largePlanes(bin.points, bin.normals, density, PlaneParams{}));
+}
+
+TEST(Planes, AbsurdInputIsRefused) {
+  const Bin bin = makeBin();
+  EXPECT_THROW((void)largePlanes(bin.points, bin.normals, 0.0f, PlaneParams{}), Error);
+  PlaneParams bad;
+  bad.tolerance = -1;
+  EXPECT_THROW((void)largePlanes(bin.points, bin.normals, 0.0625f, bad), Error);
+  Points fewer(bin.normals.begin(), bin.normals.end() - 1);
+  EXPECT_THROW((void)largePlanes(bin.points, fewer, 0.0625f, PlaneParams{}), Error);
+  EXPECT_TRUE(largePlanes({}, {}, 0.0625f, PlaneParams{}).empty());
+}
