@@ -18,7 +18,6 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
 #include <numbers>
 #include <optional>
 
@@ -136,13 +135,7 @@ void addDetect(CLI::App& app, DetectOptions& o) {
 binpose::DetectionParams detectParams(const DetectOptions& o, float diameter, const binpose::PointCloud& scan) {
   binpose::DetectionParams p = binpose::scaledToModel(binpose::presetByName(o.preset), diameter);
   p.viewpoint = scan.viewpoint;
-  if (!o.params_file.empty()) {
-    std::ifstream in(o.params_file);
-    if (!in) throw binpose::Error(fmt::format("{}: cannot open parameter file", o.params_file));
-    std::stringstream text;
-    text << in.rdbuf();
-    binpose::applyJson(p, text.str(), o.params_file);
-  }
+  if (!o.params_file.empty()) binpose::applyJsonFile(p, o.params_file);
   if (o.r) p.r = *o.r;
   if (o.rho_sub) p.rho_sub = *o.rho_sub;
   if (o.eta) p.eta = *o.eta;

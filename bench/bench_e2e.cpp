@@ -190,11 +190,7 @@ Outcome runBinpose(const OrientedModel& model, const PointCloud& scan, const std
   const ModelDatabase db = ModelDatabase::build(model, defaultQuantization(model.diameter));
   out.train_ms = msSince(t0);
   DetectionParams params = presetByName(preset);
-  if (!params_file.empty()) {  // overrides before scaling: the same file serves parts of any size
-    std::ifstream in(params_file);
-    if (!in) throw Error(fmt::format("cannot read {}", params_file));
-    applyJson(params, std::string(std::istreambuf_iterator<char>(in), {}), params_file);
-  }
+  if (!params_file.empty()) applyJsonFile(params, params_file);  // before scaling: one file for parts of any size
   const Detector detector(db, scaledToModel(params, model.diameter));
   for (int r = 0; r < repeats; ++r) {
     const auto t = Clock::now();

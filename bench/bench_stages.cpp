@@ -75,13 +75,9 @@ BENCHMARK(BM_Normals)->Unit(benchmark::kMillisecond);
 
 void BM_Planes(benchmark::State& state) {  // the bin's floor and walls found in the sampled scene
   const Fixture& f = fixture();
-  PlaneParams planes;
-  planes.min_area = f.params.plane_min_area;
-  planes.tolerance = f.params.plane_tolerance;
-  planes.link = 2.5f / std::sqrt(f.params.rho_sub);
   std::size_t flat = 0;
   for (auto _ : state) {
-    const auto flags = largePlanes(f.scene.points, f.scene.normals, f.params.rho_sub, planes);
+    const auto flags = largePlanes(f.scene.points, f.scene.normals, f.params.rho_sub, planeParams(f.params));
     flat = static_cast<std::size_t>(std::count(flags.begin(), flags.end(), 1));
   }
   state.counters["points"] = static_cast<double>(f.scene.points.size());
@@ -131,17 +127,11 @@ void BM_Refine(benchmark::State& state) {  // point-to-plane ICP from 1 mm and 2
   start.translation() += Vec3(0.6f, -0.5f, 0.6f);
   start.linear() = start.linear() * Eigen::AngleAxisf(0.035f, Vec3(1, 1, 0).normalized()).toRotationMatrix();
   const IcpParams icp{f.params.icp_iterations, f.params.icp_max_distance, f.params.verify_tolerance, Vec3::Zero()};
-  // Every stride-th model point, as the detector takes icp_model_points of them (0: all).
-  const auto wanted = static_cast<std::size_t>(state.range(0));
-  const std::size_t stride = wanted > 0 ? (f.model.points.size() + wanted - 1) / wanted : 1;
-  Points points, normals;
-  for (std::size_t i = 0; i < f.model.points.size(); i += stride) {
-    points.push_back(f.model.points[i]);
-    normals.push_back(f.model.normals[i]);
-  }
+  // The model points the detector pairs up for icp_model_points = the argument (0: all).
+  const OrientedPoints m = evenShare(f.model.points, f.model.normals, static_cast<std::size_t>(state.range(0)));
   for (auto _ : state)
-    benchmark::DoNotOptimize(refinePose(start, points, normals, f.bin.cloud.points, f.scan_tree, icp));
-  state.counters["model_points"] = static_cast<double>(points.size());
+    benchmark::DoNotOptimize(refinePose(start, m.points, m.normals, f.bin.cloud.points, f.scan_tree, icp));
+  state.counters["model_points"] = static_cast<double>(m.points.size());
 }
 BENCHMARK(BM_Refine)->Arg(0)->Arg(1000)->Unit(benchmark::kMillisecond);
 

@@ -9,7 +9,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cmath>
 
 namespace binpose {
 namespace {
@@ -19,13 +18,7 @@ double msSince(Clock::time_point t0) { return std::chrono::duration<double, std:
 
 /// The scene without the points of the bin's floor and walls.
 PreparedScene withoutPlanes(PreparedScene scene, const DetectionParams& p) {
-  const float spacing = 1.0f / std::sqrt(p.rho_sub);
-  PlaneParams planes;
-  planes.min_area = p.plane_min_area;
-  planes.tolerance = p.plane_tolerance;
-  planes.link = 2.5f * spacing;  // neighbours on a plane are one sample spacing apart
-  planes.seed = p.seed;
-  const std::vector<char> flat = largePlanes(scene.points, scene.normals, p.rho_sub, planes);
+  const std::vector<char> flat = largePlanes(scene.points, scene.normals, p.rho_sub, planeParams(p));
   PreparedScene kept;
   for (std::size_t i = 0; i < flat.size(); ++i) {
     if (flat[i]) continue;
@@ -39,20 +32,14 @@ PreparedScene withoutPlanes(PreparedScene scene, const DetectionParams& p) {
 }  // namespace
 
 Detector::Detector(const ModelDatabase& db, const DetectionParams& params)
-    : db_(db), params_(params), model_tree_(db.model().points) {
+    : db_(db), params_(params), model_tree_(db.model().points),
+      icp_model_(evenShare(db.model().points, db.model().normals, static_cast<std::size_t>(std::max(0, params.icp_model_points)))) {
   validate(params_);
   const Points& m = db.model().points;
   model_centroid_ = Vec3::Zero();
   for (const Vec3& p : m) model_centroid_ += p;
   model_centroid_ /= static_cast<float>(m.size());
   for (const Vec3& p : m) model_radius_ = std::max(model_radius_, (p - model_centroid_).norm());
-  // Every stride-th model point: the Poisson-disk order is spatially random, so an even share.
-  const std::size_t stride =
-      params_.icp_model_points > 0 ? (m.size() + params_.icp_model_points - 1) / params_.icp_model_points : 1;
-  for (std::size_t i = 0; i < m.size(); i += std::max<std::size_t>(1, stride)) {
-    icp_points_.push_back(m[i]);
-    icp_normals_.push_back(db.model().normals[i]);
-  }
 }
 
 float Detector::overlap(const Pose& a, const Pose& b) const {
@@ -160,14 +147,14 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
     const auto t_refine = Clock::now();
     ++result.hypotheses;
     if (p.verify && p.prescreen &&
-        evidence.evaluate(det.pose, icp_points_, icp_normals_, p.icp_max_distance, 0.0f).score() < p.min_score) {
+        evidence.evaluate(det.pose, icp_model_.points, icp_model_.normals, p.icp_max_distance, 0.0f).score() < p.min_score) {
       refine_ms += msSince(t_refine);
       continue;  // far from the scan even at the ICP gate: not worth refining
     }
     ++result.refined;
     if (p.refine) {
       const IcpParams icp{p.icp_iterations, p.icp_max_distance, p.verify_tolerance, p.viewpoint};
-      det.pose = refinePose(det.pose, icp_points_, icp_normals_, scan.points, scan_tree, icp);
+      det.pose = refinePose(det.pose, icp_model_.points, icp_model_.normals, scan.points, scan_tree, icp);
     }
     Hypothesis h;
     det.score = evidence.evaluate(det.pose, model, model_normals, p.verify_tolerance, db_.model().sample_radius, &h.support)

@@ -5,6 +5,8 @@
 
 #include <cmath>
 #include <fmt/format.h>
+#include <fstream>
+#include <sstream>
 #include <nlohmann/json.hpp>
 
 namespace binpose {
@@ -160,6 +162,14 @@ void applyJson(DetectionParams& params, const std::string& json_text, const std:
   } catch (const json::exception& e) {
     throw Error(fmt::format("{}: wrong type ({})", source, e.what()));
   }
+}
+
+void applyJsonFile(DetectionParams& params, const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw Error(fmt::format("{}: cannot open parameter file", path));
+  std::stringstream text;
+  text << in.rdbuf();
+  applyJson(params, text.str(), path);
 }
 
 std::string toJson(const DetectionParams& params) {

@@ -46,6 +46,15 @@ std::vector<std::vector<std::uint32_t>> patches(const Points& points, const std:
 
 }  // namespace
 
+PlaneParams planeParams(const DetectionParams& params) {
+  PlaneParams planes;
+  planes.min_area = params.plane_min_area;
+  planes.tolerance = params.plane_tolerance;
+  planes.link = 2.5f / std::sqrt(params.rho_sub);  // neighbours on a plane are one sample spacing apart
+  planes.seed = params.seed;
+  return planes;
+}
+
 std::vector<char> largePlanes(const Points& points, const Points& normals, float density, const PlaneParams& params) {
   if (points.size() != normals.size()) throw Error("largePlanes: one normal per point needed");
   if (!(density > 0) || !(params.min_area > 0) || !(params.tolerance > 0) || !(params.link > 0))

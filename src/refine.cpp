@@ -17,6 +17,16 @@ std::int64_t cellOf(float u, float v, float size) {
 
 }  // namespace
 
+OrientedPoints evenShare(const Points& points, const Points& normals, std::size_t count) {
+  const std::size_t stride = count > 0 ? std::max<std::size_t>(1, (points.size() + count - 1) / count) : 1;
+  OrientedPoints out;
+  for (std::size_t i = 0; i < points.size(); i += stride) {
+    out.points.push_back(points[i]);
+    out.normals.push_back(normals[i]);
+  }
+  return out;
+}
+
 Pose refinePose(const Pose& pose, const Points& model_points, const Points& model_normals, const Points& scan,
                 const KdTree& scan_tree, const IcpParams& params) {
   Vec3 model_centre = Vec3::Zero();

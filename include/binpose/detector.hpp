@@ -5,6 +5,7 @@
 #include <binpose/model_database.hpp>
 #include <binpose/params.hpp>
 #include <binpose/pose.hpp>
+#include <binpose/refine.hpp>
 
 #include <vector>
 
@@ -60,7 +61,7 @@ class Detector {
   const ModelDatabase& db_;
   DetectionParams params_;
   KdTree model_tree_;
-  Points icp_points_, icp_normals_;  ///< the model points ICP pairs up (icp_model_points of them)
+  OrientedPoints icp_model_;  ///< the model points ICP pairs up (icp_model_points of them)
   Vec3 model_centroid_;
   float model_radius_ = 0;  ///< largest distance of a model point from the centroid
 };

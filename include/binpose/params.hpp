@@ -92,6 +92,8 @@ void validate(const DetectionParams& params);
 /// Overrides fields from a JSON object (keys as the field names; "subsampling": "random"|"voxel",
 /// "viewpoint": [x, y, z]); an unknown key or a wrong type is an error.
 void applyJson(DetectionParams& params, const std::string& json_text, const std::string& source);
+/// applyJson on the text of a file; an unreadable file is an error.
+void applyJsonFile(DetectionParams& params, const std::string& path);
 /// All fields as a JSON object text.
 std::string toJson(const DetectionParams& params);
 

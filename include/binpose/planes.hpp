@@ -2,6 +2,7 @@
 // Beyond the thesis: the bin's floor and walls (and a table under the parts) taken out of the
 // sampled scene before voting. Their points pair with nothing on the part, yet cost as much to
 // vote as the part's own points and feed the clique search with wrong correspondences.
+#include <binpose/params.hpp>
 #include <binpose/types.hpp>
 
 #include <cstdint>
@@ -21,6 +22,10 @@ struct PlaneParams {
   int trials = 300;           ///< RANSAC hypotheses per plane (one oriented point each)
   std::uint64_t seed = 1;
 };
+
+/// The plane search the detector runs for `params` (absolute units): its plane_min_area and
+/// plane_tolerance, patches linked over 2.5 sample spacings (1 / sqrt(rho_sub)), its seed.
+PlaneParams planeParams(const DetectionParams& params);
 
 /// Marks the points of large planes: RANSAC on oriented points (each hypothesis is the plane of
 /// one point and its normal), then the inliers split into connected patches, and every patch of

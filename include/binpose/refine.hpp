@@ -15,6 +15,16 @@ struct IcpParams {
   Vec3 viewpoint = Vec3::Zero();
 };
 
+/// Oriented model points, without the rest of a model's description.
+struct OrientedPoints {
+  Points points, normals;
+};
+
+/// About `count` of the model's points with their normals (all when 0): every k-th, an even
+/// share, as the Poisson-disk order is spatially random. ICP's cost is one scan-tree query per
+/// model point and iteration; a thousand points fix a pose as well as four thousand.
+OrientedPoints evenShare(const Points& points, const Points& normals, std::size_t count);
+
 /// Point-to-plane ICP (Chen & Medioni) of the model's sensor-facing points against the scan,
 /// with the model's normals as the planes; each step a linearised 6-dof least-squares solve.
 /// Returns the refined pose (the input pose when too few points pair up).
