@@ -16,7 +16,8 @@ using Bits = std::vector<std::uint64_t>;
 
 class Search {
  public:
-  Search(const Graph& g, std::uint64_t limit) : g_(g), limit_(limit) {}
+  /// `floor`: a clique of that many vertices is known already; only larger ones are searched.
+  Search(const Graph& g, std::uint64_t limit, std::size_t floor) : g_(g), limit_(limit), floor_(floor) {}
 
   CliqueResult run() {
     Bits all(static_cast<std::size_t>(g_.words()), 0);
@@ -58,7 +59,7 @@ class Search {
     std::vector<int> order, colours;
     colour(P, order, colours);
     for (int i = static_cast<int>(order.size()) - 1; i >= 0 && !stopped_; --i) {
-      if (R.size() + static_cast<std::size_t>(colours[i]) <= best_.size()) return;  // bound
+      if (R.size() + static_cast<std::size_t>(colours[i]) <= std::max(best_.size(), floor_)) return;  // bound
       const int v = order[i];
       R.push_back(v);
       Bits next(P.size());
@@ -66,7 +67,7 @@ class Search {
       const std::uint64_t* n = g_.row(v);
       for (std::size_t w = 0; w < P.size(); ++w) empty &= (next[w] = P[w] & n[w]) == 0;
       if (empty) {
-        if (R.size() > best_.size()) best_ = R;
+        if (R.size() > std::max(best_.size(), floor_)) best_ = R;
       } else {
         expand(R, std::move(next));
       }
@@ -77,9 +78,55 @@ class Search {
 
   const Graph& g_;
   std::uint64_t limit_, nodes_ = 0;
+  std::size_t floor_;
   bool stopped_ = false;
   std::vector<int> best_;
 };
+
+/// A clique grown greedily from each of the few highest-degree vertices (adding, in degree
+/// order, every vertex adjacent to all chosen so far); the largest of them. A lower bound.
+std::vector<int> greedyClique(const Graph& g, const std::vector<int>& by_degree) {
+  constexpr int kStarts = 4;
+  std::vector<int> best, clique;
+  Bits P(static_cast<std::size_t>(g.words()));
+  for (int s = 0; s < std::min<int>(kStarts, static_cast<int>(by_degree.size())); ++s) {
+    const int start = by_degree[s];
+    clique.assign(1, start);
+    std::copy(g.row(start), g.row(start) + g.words(), P.begin());
+    for (const int v : by_degree) {
+      if (!((P[v / 64] >> (v % 64)) & 1ull)) continue;
+      clique.push_back(v);
+      const std::uint64_t* n = g.row(v);
+      for (std::size_t w = 0; w < P.size(); ++w) P[w] &= n[w];
+    }
+    if (clique.size() > best.size()) best = clique;
+  }
+  return best;
+}
+
+/// The vertices left after repeatedly removing those with fewer than `k` remaining neighbours
+/// (the k-core): every clique of more than k vertices lies in it.
+std::vector<int> coreOf(const Graph& g, std::vector<int> degree, int k) {
+  const int n = g.size();
+  std::vector<char> gone(static_cast<std::size_t>(n), 0);
+  std::vector<int> queue;
+  for (int v = 0; v < n; ++v)
+    if (degree[v] < k) { gone[v] = 1; queue.push_back(v); }
+  while (!queue.empty()) {
+    const int v = queue.back();
+    queue.pop_back();
+    const std::uint64_t* row = g.row(v);
+    for (int w = 0; w < g.words(); ++w)
+      for (std::uint64_t bits = row[w]; bits; bits &= bits - 1) {
+        const int u = w * 64 + std::countr_zero(bits);
+        if (!gone[u] && --degree[u] < k) { gone[u] = 1; queue.push_back(u); }
+      }
+  }
+  std::vector<int> core;
+  for (int v = 0; v < n; ++v)
+    if (!gone[v]) core.push_back(v);
+  return core;
+}
 
 }  // namespace
 
@@ -91,16 +138,34 @@ int Graph::degree(int v) const {
 
 CliqueResult maximumClique(const Graph& g, std::uint64_t work_limit) {
   if (g.size() == 0) return {};
-  // Renumber by degree, highest first: tighter colour bounds early (MCQ's initial order).
-  std::vector<int> order(static_cast<std::size_t>(g.size()));
-  std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return g.degree(a) > g.degree(b); });
-  Graph sorted(g.size());
-  for (int a = 0; a < g.size(); ++a)
-    for (int b = a + 1; b < g.size(); ++b)
-      if (g.adjacent(order[a], order[b])) sorted.addEdge(a, b);
-  CliqueResult r = Search(sorted, work_limit).run();
-  for (int& v : r.vertices) v = order[v];
+  const int n = g.size();
+  std::vector<int> degree(static_cast<std::size_t>(n));
+  for (int v = 0; v < n; ++v) degree[v] = g.degree(v);
+  std::vector<int> by_degree(static_cast<std::size_t>(n));
+  std::iota(by_degree.begin(), by_degree.end(), 0);
+  std::stable_sort(by_degree.begin(), by_degree.end(), [&](int a, int b) { return degree[a] > degree[b]; });
+  const std::vector<int> greedy = greedyClique(g, by_degree);
+  // Only vertices of at least |greedy| neighbours among themselves can lie in a larger clique.
+  const std::vector<int> core = coreOf(g, degree, static_cast<int>(greedy.size()));
+  CliqueResult r;
+  r.vertices = greedy;
+  if (static_cast<std::size_t>(core.size()) > greedy.size()) {
+    // Renumber by degree, highest first: tighter colour bounds early (MCQ's initial order).
+    std::vector<int> order = core;
+    std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return degree[a] > degree[b]; });
+    const int m = static_cast<int>(order.size());
+    Graph sorted(m);
+    for (int a = 0; a < m; ++a)
+      for (int b = a + 1; b < m; ++b)
+        if (g.adjacent(order[a], order[b])) sorted.addEdge(a, b);
+    CliqueResult found = Search(sorted, work_limit, greedy.size()).run();
+    r.exact = found.exact;
+    r.nodes = found.nodes;
+    if (found.vertices.size() > greedy.size()) {
+      r.vertices.clear();
+      for (const int v : found.vertices) r.vertices.push_back(order[v]);
+    }
+  }
   std::sort(r.vertices.begin(), r.vertices.end());
   return r;
 }

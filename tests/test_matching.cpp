@@ -160,6 +160,25 @@ TEST(Clique, ConsistencyGraphFollowsEquations13To16) {
   EXPECT_EQ(maximumClique(g).vertices.size(), 60u);
 }
 
+TEST(Clique, CorePruningProvesAPlantedCliqueAmongManyVertices) {
+  // 40 rigidly consistent pairs among 1000 sparse random ones: the greedy clique finds them,
+  // the 40-core holds nothing else, and the search proves them largest in a handful of nodes.
+  Rng rng(9);
+  const int n = 1000;
+  Graph g(n);
+  for (int a = 0; a < n; ++a)
+    for (int b = a + 1; b < n; ++b)
+      if (rng.uniform() < 0.02) g.addEdge(a, b);
+  std::vector<int> planted;
+  for (int v = 7; v < n && planted.size() < 40; v += 23) planted.push_back(v);
+  for (std::size_t i = 0; i < planted.size(); ++i)
+    for (std::size_t j = i + 1; j < planted.size(); ++j) g.addEdge(planted[i], planted[j]);
+  const CliqueResult r = maximumClique(g, 20);
+  EXPECT_TRUE(r.exact);
+  EXPECT_LE(r.nodes, 20u);
+  EXPECT_EQ(r.vertices, planted);
+}
+
 TEST(Clique, WorkBoundStopsEarly) {
   Rng rng(8);
   const int n = 200;

@@ -41,8 +41,11 @@ struct CliqueResult {
 /// distances between them differ by less than e_gmax.
 Graph consistencyGraph(std::span<const Correspondence> cps, const Points& scene, const Points& model, float e_gmax);
 
-/// A maximum clique of g. The search expands at most `work_limit` nodes; if it has to stop,
-/// the best clique found so far is returned with exact = false. Deterministic.
-CliqueResult maximumClique(const Graph& g, std::uint64_t work_limit = 200000);
+/// A maximum clique of g. A greedy clique (grown from the highest-degree vertices) gives a
+/// lower bound L; the search then runs only on the vertices of the L-core (those keeping at
+/// least L neighbours among themselves), where every larger clique lies. It expands at most
+/// `work_limit` nodes; if it has to stop, the best clique found so far is returned with
+/// exact = false. Deterministic.
+CliqueResult maximumClique(const Graph& g, std::uint64_t work_limit = 5000);
 
 }  // namespace binpose
