@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <memory>
 
 namespace binpose {
 namespace {
@@ -93,19 +94,24 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   result.timing.preprocess_ms = msSince(t0);
 
   const auto max_list = static_cast<std::uint32_t>(p.max_key_share * static_cast<float>(model.size()));
-  std::vector<std::vector<std::uint32_t>> local;  // each point's candidates, when voting once
+  // Local votes (each point votes once, when a sub-group first needs it; see NeighbourhoodVoter).
+  std::unique_ptr<NeighbourhoodVoter> local;
+  std::vector<char> may_vote;  // the reference points of voter_spacing (all without it)
   if (p.local_votes) {
-    std::vector<std::uint32_t> voters, partners;
-    if (p.voter_spacing > 0) voters = voxelSubsample(scene.points, p.voter_spacing);
+    std::vector<std::uint32_t> partners;
     if (p.partner_spacing > 0) partners = voxelSubsample(scene.points, p.partner_spacing);
-    local = voteNeighbourhoods(db_, scene.points, scene.normals, p.vote_radius, p.candidates_per_point, max_list, voters,
-                               partners);
+    local = std::make_unique<NeighbourhoodVoter>(db_, scene.points, scene.normals, p.vote_radius, p.candidates_per_point,
+                                                 max_list, partners);
+    may_vote.assign(scene.points.size(), p.voter_spacing > 0 ? 0 : 1);
+    if (p.voter_spacing > 0)
+      for (const auto i : voxelSubsample(scene.points, p.voter_spacing)) may_vote[i] = 1;
   }
-  result.timing.vote_ms = msSince(t0) - result.timing.preprocess_ms;
+  const double vote_setup_ms = msSince(t0) - result.timing.preprocess_ms;
+  double vote_ms = 0;  // inside the sub-group loop
 
   std::vector<char> removed(scene.points.size(), 0);
   ParallelVoter voter(db_, p.candidates_per_point, max_list);
-  std::vector<std::uint32_t> members;
+  std::vector<std::uint32_t> members, voters;
   std::vector<Correspondence> candidates;
   Points clique_model, clique_scene;
   std::vector<Hypothesis> hypotheses;
@@ -120,11 +126,18 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
     if (members.size() < static_cast<std::size_t>(p.C_n)) continue;
     ++result.subgroups_run;
     candidates.clear();
-    if (p.local_votes)
+    const auto t_vote = Clock::now();
+    if (p.local_votes) {
+      voters.clear();
       for (const auto i : members)
-        for (const auto m : local[i]) candidates.push_back({i, m});
-    else
+        if (may_vote[i]) voters.push_back(i);
+      local->vote(voters);
+      for (const auto i : members)
+        for (const auto m : local->candidates(i)) candidates.push_back({i, m});
+    } else {
       voter.vote(scene.points, scene.normals, members, candidates);  // 4.3-4.4
+    }
+    vote_ms += msSince(t_vote);
     if (candidates.size() < static_cast<std::size_t>(p.C_n)) continue;
     const CliqueResult clique =
         maximumClique(consistencyGraph(candidates, scene.points, model, p.e_gmax), p.clique_work_limit);  // 4.5
@@ -181,8 +194,9 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
       if (model_tree_.nearest(inverse * scene.points[i], j, d2) && d2 <= p.sigma_dist * p.sigma_dist) removed[i] = 1;
     }
   }
+  result.timing.vote_ms = vote_setup_ms + vote_ms;
   result.timing.refine_ms = refine_ms;
-  result.timing.match_ms = msSince(t_match) - refine_ms;
+  result.timing.match_ms = msSince(t_match) - refine_ms - vote_ms;
   if (p.verify) {
     result.detections = suppressDuplicates(std::move(hypotheses), scan.size());
     if (p.max_instances > 0 && static_cast<int>(result.detections.size()) > p.max_instances)

@@ -11,17 +11,37 @@ namespace binpose {
 
 float angleBetween(const Vec3& a, const Vec3& b) { return std::atan2(a.cross(b).norm(), a.dot(b)); }
 
+namespace {
+
+/// acos by Abramowitz & Stegun 4.4.46 (|error| <= 2e-8 rad in exact arithmetic, about 1e-6 rad
+/// in float): a polynomial and one square root, 3-4x faster than std::acos, and the same
+/// function builds the database and reads the scene.
+float fastAcos(float c) {
+  const float x = std::min(std::abs(c), 1.0f);
+  float p = -0.0012624911f;
+  p = p * x + 0.0066700901f;
+  p = p * x - 0.0170881256f;
+  p = p * x + 0.0308918810f;
+  p = p * x - 0.0501743046f;
+  p = p * x + 0.0889789874f;
+  p = p * x - 0.2145988016f;
+  p = p * x + 1.5707963050f;
+  const float a = std::sqrt(1.0f - x) * p;
+  return c < 0 ? std::numbers::pi_v<float> - a : a;
+}
+
+}  // namespace
+
 bool computeFeature(const Vec3& m1, const Vec3& n1, const Vec3& m2, const Vec3& n2, PairFeature& f) {
   const Vec3 d = m2 - m1;  // eq. 3
   f.d = d.norm();
   if (!(f.d > 0.0f)) return false;
   // eq. 2 by acos of unit dot products: within 0.02 degrees of the exact angle even near 0 and
-  // 180 degrees (float rounding), far below d_angle, and about twice as fast as atan2.
+  // 180 degrees (float rounding), far below d_angle.
   const Vec3 u = d / f.d;
-  auto angle = [](float c) { return std::acos(std::clamp(c, -1.0f, 1.0f)); };
-  f.theta1 = angle(n1.dot(u));
-  f.theta2 = angle(n2.dot(u));
-  f.theta3 = angle(n1.dot(n2));
+  f.theta1 = fastAcos(n1.dot(u));
+  f.theta2 = fastAcos(n2.dot(u));
+  f.theta3 = fastAcos(n1.dot(n2));
   return true;
 }
 

@@ -1,8 +1,6 @@
 // Accumulator voting and fourth-spread selection (thesis 4.3-4.4).
 #include <binpose/voting.hpp>
 
-#include <binpose/kdtree.hpp>
-
 #include <algorithm>
 #include <numeric>
 #include <fmt/format.h>
@@ -83,18 +81,23 @@ void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t
     const auto ids = db_.lookup(keys_[a]);
     if (ids.size() > max_list_) continue;  // a feature nearly every model point has: no information
     const auto times = static_cast<std::uint16_t>(b - a);
-    for (const auto id : ids) {
-      if (votes_[id] == 0) touched_.push_back(id);
-      votes_[id] = static_cast<std::uint16_t>(votes_[id] + times);
-    }
+    for (const auto id : ids) votes_[id] = static_cast<std::uint16_t>(votes_[id] + times);  // no branch
   }
-  if (touched_.empty()) return;
-  // A_k over the distinct model points of L_k, then eq. 10-12.
-  values_.clear();
-  for (const auto id : touched_) values_.push_back(votes_[id]);
+  // A_k over the model points with a vote, in model order (a branch-free scan of the small
+  // accumulator costs less than tracking first touches), then eq. 10-12.
+  const auto n = static_cast<std::uint32_t>(votes_.size());
+  touched_.resize(n);
+  values_.resize(n);
+  std::size_t count = 0;
+  for (std::uint32_t id = 0; id < n; ++id) {
+    touched_[count] = id;
+    values_[count] = votes_[id];
+    count += votes_[id] != 0;
+  }
+  std::fill(votes_.begin(), votes_.end(), std::uint16_t{0});
+  if (count == 0) return;
+  values_.resize(count);
   for (const std::size_t i : selectCandidates(values_, keep_)) out.push_back({k, touched_[i]});
-  for (const auto id : touched_) votes_[id] = 0;
-  touched_.clear();
 }
 
 void Voter::vote(const Points& points, const Points& normals, std::span<const std::uint32_t> group,
@@ -121,44 +124,68 @@ void ParallelVoter::vote(const Points& points, const Points& normals, std::span<
   for (std::size_t c = 0; c < chunks; ++c) out.insert(out.end(), parts_[c].begin(), parts_[c].end());
 }
 
+struct NeighbourhoodVoter::Local {
+  Voter voter;
+  std::vector<std::pair<std::uint32_t, float>> found;
+  std::vector<std::uint32_t> partners;
+  std::vector<Correspondence> out;
+};
+
+NeighbourhoodVoter::NeighbourhoodVoter(const ModelDatabase& db, const Points& points, const Points& normals, float radius,
+                                       int keep, std::uint32_t max_list, std::span<const std::uint32_t> partners)
+    : db_(db), points_(points), normals_(normals), radius_(radius), keep_(keep), max_list_(max_list),
+      voted_(points.size(), 0), candidates_(points.size()) {
+  if (partners.empty()) {
+    partners_.resize(points.size());
+    std::iota(partners_.begin(), partners_.end(), 0u);
+  } else {
+    partners_.assign(partners.begin(), partners.end());
+  }
+  for (const auto o : partners_) partner_points_.push_back(points[o]);
+  tree_ = std::make_unique<KdTree>(partner_points_);
+  locals_ = std::make_unique<tbb::enumerable_thread_specific<Local>>(
+      [this] { return Local{Voter(db_, keep_, max_list_), {}, {}, {}}; });
+}
+
+NeighbourhoodVoter::~NeighbourhoodVoter() = default;
+
+void NeighbourhoodVoter::vote(std::span<const std::uint32_t> voters) {
+  pending_.clear();
+  for (const auto k : voters)
+    if (!voted_[k]) {
+      voted_[k] = 1;
+      pending_.push_back(k);
+    }
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pending_.size(), 16), [&](const tbb::blocked_range<std::size_t>& range) {
+    Local& l = locals_->local();
+    for (std::size_t v = range.begin(); v < range.end(); ++v) {
+      const std::uint32_t k = pending_[v];
+      tree_->radius(points_[k], radius_, l.found);
+      if (l.found.size() >= 65535)
+        throw Error(fmt::format("{} points within {} mm of a point: too many to vote", l.found.size(), radius_));
+      l.partners.clear();
+      for (const auto& [o, d2] : l.found) l.partners.push_back(partners_[o]);
+      std::sort(l.partners.begin(), l.partners.end());  // the same sums whatever the tree's order
+      l.out.clear();
+      l.voter.votePoint(points_, normals_, k, l.partners, l.out);
+      for (const Correspondence& c : l.out) candidates_[k].push_back(c.model);
+    }
+  });
+}
+
 std::vector<std::vector<std::uint32_t>> voteNeighbourhoods(const ModelDatabase& db, const Points& points,
                                                            const Points& normals, float radius, int keep,
                                                            std::uint32_t max_list, std::span<const std::uint32_t> voters,
                                                            std::span<const std::uint32_t> partners) {
-  std::vector<std::vector<std::uint32_t>> result(points.size());
-  if (points.empty()) return result;
+  NeighbourhoodVoter voter(db, points, normals, radius, keep, max_list, partners);
   std::vector<std::uint32_t> all;
-  if (voters.empty() || partners.empty()) {
+  if (voters.empty()) {
     all.resize(points.size());
     std::iota(all.begin(), all.end(), 0u);
+    voters = all;
   }
-  if (voters.empty()) voters = all;
-  if (partners.empty()) partners = all;
-  Points partner_points;
-  for (const auto o : partners) partner_points.push_back(points[o]);
-  const KdTree tree(partner_points);
-  struct Local {
-    Voter voter;
-    std::vector<std::pair<std::uint32_t, float>> found;
-    std::vector<std::uint32_t> partners;
-    std::vector<Correspondence> out;
-  };
-  tbb::enumerable_thread_specific<Local> locals([&] { return Local{Voter(db, keep, max_list), {}, {}, {}}; });
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, voters.size(), 32), [&](const tbb::blocked_range<std::size_t>& range) {
-    Local& l = locals.local();
-    for (std::size_t v = range.begin(); v < range.end(); ++v) {
-      const std::uint32_t k = voters[v];
-      tree.radius(points[k], radius, l.found);
-      if (l.found.size() >= 65535) throw Error(fmt::format("{} points within {} mm of a point: too many to vote", l.found.size(), radius));
-      l.partners.clear();
-      for (const auto& [o, d2] : l.found) l.partners.push_back(partners[o]);
-      std::sort(l.partners.begin(), l.partners.end());  // the same sums whatever the tree's order
-      l.out.clear();
-      l.voter.votePoint(points, normals, k, l.partners, l.out);
-      for (const Correspondence& c : l.out) result[k].push_back(c.model);
-    }
-  });
-  return result;
+  voter.vote(voters);
+  return voter.release();
 }
 
 }  // namespace binpose

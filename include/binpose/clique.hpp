@@ -46,6 +46,6 @@ Graph consistencyGraph(std::span<const Correspondence> cps, const Points& scene,
 /// least L neighbours among themselves), where every larger clique lies. It expands at most
 /// `work_limit` nodes; if it has to stop, the best clique found so far is returned with
 /// exact = false. Deterministic.
-CliqueResult maximumClique(const Graph& g, std::uint64_t work_limit = 5000);
+CliqueResult maximumClique(const Graph& g, std::uint64_t work_limit = 1000);
 
 }  // namespace binpose

@@ -19,7 +19,7 @@ struct Detection {
 };
 
 struct DetectionTiming {
-  double preprocess_ms = 0, vote_ms = 0, match_ms = 0, refine_ms = 0, total_ms = 0;  ///< vote_ms: local votes
+  double preprocess_ms = 0, vote_ms = 0, match_ms = 0, refine_ms = 0, total_ms = 0;  ///< vote_ms: all voting (4.3-4.4); match_ms: clique and pose
 };
 
 struct DetectionResult {

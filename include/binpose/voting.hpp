@@ -1,9 +1,11 @@
 #pragma once
 // Voting for scene points' model points (thesis 4.3-4.4).
+#include <binpose/kdtree.hpp>
 #include <binpose/model_database.hpp>
 
 #include <cstdint>
 #include <climits>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -55,7 +57,7 @@ class Voter {
   std::vector<std::uint32_t> values_;     ///< the accumulator's non-zero values
   std::vector<std::uint32_t> keys_;       ///< the keys of one point's features
   std::vector<std::uint16_t> votes_;      ///< A_k, one counter per model point
-  std::vector<std::uint32_t> touched_;    ///< model points with a vote, for cheap clearing
+  std::vector<std::uint32_t> touched_;    ///< model points with a vote
 };
 
 /// Voter::vote with the points of a group shared among threads: the same pairs in the same
@@ -73,9 +75,45 @@ class ParallelVoter {
 
 /// Beyond the thesis: every scene point votes once, with the features to the points within
 /// `radius` of it (instead of once per sub-group it belongs to, about 9 times with the thesis's
-/// eta and r). The candidate model points of each point, in parallel; the same whatever the
-/// thread count. Only the points listed in `voters` vote (all when empty); only those listed in
-/// `partners` are paired with them (all when empty).
+/// eta and r), and on demand: a point is voted for only when a sub-group first needs it, so the
+/// points of objects found and removed before that never vote. A point's candidates do not
+/// depend on when it votes, nor on the thread count.
+class NeighbourhoodVoter {
+ public:
+  /// Only the points listed in `partners` are paired with the voters (all when empty). The
+  /// points and normals must outlive the voter.
+  NeighbourhoodVoter(const ModelDatabase& db, const Points& points, const Points& normals, float radius, int keep,
+                     std::uint32_t max_list = UINT32_MAX, std::span<const std::uint32_t> partners = {});
+  ~NeighbourhoodVoter();
+  NeighbourhoodVoter(const NeighbourhoodVoter&) = delete;
+  NeighbourhoodVoter& operator=(const NeighbourhoodVoter&) = delete;
+  /// Votes for the points of `voters` that have not voted yet, in parallel.
+  void vote(std::span<const std::uint32_t> voters);
+  [[nodiscard]] bool voted(std::uint32_t i) const { return voted_[i] != 0; }
+  /// The candidate model points of point i (empty until it has voted, or without an outlier).
+  [[nodiscard]] const std::vector<std::uint32_t>& candidates(std::uint32_t i) const { return candidates_[i]; }
+  /// All points' candidates, handed over.
+  std::vector<std::vector<std::uint32_t>> release() { return std::move(candidates_); }
+
+ private:
+  struct Local;
+  const ModelDatabase& db_;
+  const Points& points_;
+  const Points& normals_;
+  float radius_;
+  int keep_;
+  std::uint32_t max_list_;
+  std::vector<std::uint32_t> partners_;  ///< partner index -> point index
+  Points partner_points_;
+  std::unique_ptr<KdTree> tree_;
+  std::vector<char> voted_;
+  std::vector<std::vector<std::uint32_t>> candidates_;
+  std::unique_ptr<tbb::enumerable_thread_specific<Local>> locals_;
+  std::vector<std::uint32_t> pending_;
+};
+
+/// NeighbourhoodVoter's candidates of the points listed in `voters` (all when empty); the
+/// others' lists stay empty.
 std::vector<std::vector<std::uint32_t>> voteNeighbourhoods(const ModelDatabase& db, const Points& points,
                                                            const Points& normals, float radius, int keep,
                                                            std::uint32_t max_list = UINT32_MAX,
