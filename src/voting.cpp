@@ -165,7 +165,6 @@ void NeighbourhoodVoter::vote(std::span<const std::uint32_t> voters) {
         throw Error(fmt::format("{} points within {} mm of a point: too many to vote", l.found.size(), radius_));
       l.partners.clear();
       for (const auto& [o, d2] : l.found) l.partners.push_back(partners_[o]);
-      std::sort(l.partners.begin(), l.partners.end());  // the same sums whatever the tree's order
       l.out.clear();
       l.voter.votePoint(points_, normals_, k, l.partners, l.out);
       for (const Correspondence& c : l.out) candidates_[k].push_back(c.model);
