@@ -80,6 +80,15 @@ void bronKerbosch(const Graph& g, std::vector<int> R, std::vector<int> P, std::v
   }
 }
 
+/// G(n, density): each edge present with that probability.
+Graph randomGraph(int n, double density, Rng& rng) {
+  Graph g(n);
+  for (int a = 0; a < n; ++a)
+    for (int b = a + 1; b < n; ++b)
+      if (rng.uniform() < density) g.addEdge(a, b);
+  return g;
+}
+
 int bruteForceClique(const Graph& g) {
   std::vector<int> all(static_cast<std::size_t>(g.size()));
   std::iota(all.begin(), all.end(), 0);
@@ -94,10 +103,7 @@ TEST(Clique, MatchesBruteForceOnRandomGraphs) {
   for (int trial = 0; trial < 200; ++trial) {
     const int n = 4 + static_cast<int>(rng.below(27));  // 4 to 30 vertices
     const double density = 0.2 + 0.7 * rng.uniform();
-    Graph g(n);
-    for (int a = 0; a < n; ++a)
-      for (int b = a + 1; b < n; ++b)
-        if (rng.uniform() < density) g.addEdge(a, b);
+    Graph g = randomGraph(n, density, rng);
     const CliqueResult r = maximumClique(g, 10000000);
     ASSERT_TRUE(r.exact);
     EXPECT_EQ(static_cast<int>(r.vertices.size()), bruteForceClique(g)) << "trial " << trial;
@@ -110,10 +116,7 @@ TEST(Clique, ThirtyVerticesAndAPlantedClique) {
   Rng rng(6);
   for (int trial = 0; trial < 8; ++trial) {
     const int n = 30;
-    Graph g(n);
-    for (int a = 0; a < n; ++a)
-      for (int b = a + 1; b < n; ++b)
-        if (rng.uniform() < 0.5) g.addEdge(a, b);
+    Graph g = randomGraph(n, 0.5, rng);
     // Plant a 12-clique, far above what a G(30, 0.5) graph holds (about 7): found exactly.
     std::vector<int> planted;
     for (int v = 0; v < n; ++v)
@@ -165,10 +168,7 @@ TEST(Clique, CorePruningProvesAPlantedCliqueAmongManyVertices) {
   // the 40-core holds nothing else, and the search proves them largest in a handful of nodes.
   Rng rng(9);
   const int n = 1000;
-  Graph g(n);
-  for (int a = 0; a < n; ++a)
-    for (int b = a + 1; b < n; ++b)
-      if (rng.uniform() < 0.02) g.addEdge(a, b);
+  Graph g = randomGraph(n, 0.02, rng);
   std::vector<int> planted;
   for (int v = 7; v < n && planted.size() < 40; v += 23) planted.push_back(v);
   for (std::size_t i = 0; i < planted.size(); ++i)
@@ -182,10 +182,7 @@ TEST(Clique, CorePruningProvesAPlantedCliqueAmongManyVertices) {
 TEST(Clique, WorkBoundStopsEarly) {
   Rng rng(8);
   const int n = 200;
-  Graph g(n);
-  for (int a = 0; a < n; ++a)
-    for (int b = a + 1; b < n; ++b)
-      if (rng.uniform() < 0.9) g.addEdge(a, b);
+  Graph g = randomGraph(n, 0.9, rng);
   const CliqueResult r = maximumClique(g, 50);
   EXPECT_FALSE(r.exact);
   EXPECT_LE(r.nodes, 51u);

@@ -81,7 +81,8 @@ DetectionParams thesisPreset();
 /// binpose's defaults.
 DetectionParams defaultPreset();
 /// binpose's defaults, but each scene point votes once (local_votes) and keeps its 8 best model
-/// points: 2-3x faster; better on parts without rotational symmetry, worse on bodies of revolution.
+/// points: 1.3-2.8x faster on the bench bins; better on parts without rotational symmetry, worse
+/// on bodies of revolution.
 DetectionParams fastPreset();
 /// A preset by name: "thesis", "default" or "fast".
 DetectionParams presetByName(const std::string& name);
