@@ -104,14 +104,14 @@ std::vector<int> greedyClique(const Graph& g, const std::vector<int>& by_degree)
   return best;
 }
 
-/// The vertices left after repeatedly removing those with fewer than `k` remaining neighbours
-/// (the k-core): every clique of more than k vertices lies in it.
-std::vector<int> coreOf(const Graph& g, std::vector<int> degree, int k) {
+/// Marks the vertices left after repeatedly removing those with fewer than `k` remaining
+/// neighbours (the k-core): every clique of more than k vertices lies in it.
+std::vector<char> coreOf(const Graph& g, std::vector<int> degree, int k) {
   const int n = g.size();
-  std::vector<char> gone(static_cast<std::size_t>(n), 0);
+  std::vector<char> in_core(static_cast<std::size_t>(n), 1);
   std::vector<int> queue;
   for (int v = 0; v < n; ++v)
-    if (degree[v] < k) { gone[v] = 1; queue.push_back(v); }
+    if (degree[v] < k) { in_core[v] = 0; queue.push_back(v); }
   while (!queue.empty()) {
     const int v = queue.back();
     queue.pop_back();
@@ -119,13 +119,10 @@ std::vector<int> coreOf(const Graph& g, std::vector<int> degree, int k) {
     for (int w = 0; w < g.words(); ++w)
       for (std::uint64_t bits = row[w]; bits; bits &= bits - 1) {
         const int u = w * 64 + std::countr_zero(bits);
-        if (!gone[u] && --degree[u] < k) { gone[u] = 1; queue.push_back(u); }
+        if (in_core[u] && --degree[u] < k) { in_core[u] = 0; queue.push_back(u); }
       }
   }
-  std::vector<int> core;
-  for (int v = 0; v < n; ++v)
-    if (!gone[v]) core.push_back(v);
-  return core;
+  return in_core;
 }
 
 /// Row i of the consistency graph (eq. 13-16), 64 partners to a word. Built for AVX2 as well
@@ -167,14 +164,15 @@ CliqueResult maximumClique(const Graph& g, std::uint64_t work_limit) {
   std::iota(by_degree.begin(), by_degree.end(), 0);
   std::stable_sort(by_degree.begin(), by_degree.end(), [&](int a, int b) { return degree[a] > degree[b]; });
   const std::vector<int> greedy = greedyClique(g, by_degree);
-  // Only vertices of at least |greedy| neighbours among themselves can lie in a larger clique.
-  const std::vector<int> core = coreOf(g, degree, static_cast<int>(greedy.size()));
+  // Only vertices of at least |greedy| neighbours among themselves can lie in a larger clique;
+  // they keep the degree order, highest first: tighter colour bounds early (MCQ's initial order).
+  const std::vector<char> in_core = coreOf(g, degree, static_cast<int>(greedy.size()));
+  std::vector<int> order;
+  for (const int v : by_degree)
+    if (in_core[v]) order.push_back(v);
   CliqueResult r;
   r.vertices = greedy;
-  if (static_cast<std::size_t>(core.size()) > greedy.size()) {
-    // Renumber by degree, highest first: tighter colour bounds early (MCQ's initial order).
-    std::vector<int> order = core;
-    std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return degree[a] > degree[b]; });
+  if (order.size() > greedy.size()) {
     const int m = static_cast<int>(order.size());
     std::vector<int> position(static_cast<std::size_t>(n), -1);
     for (int a = 0; a < m; ++a) position[order[a]] = a;

@@ -22,19 +22,20 @@ namespace {
 static_assert(std::endian::native == std::endian::little, "database files are little-endian");
 constexpr char kMagic[8] = {'B', 'P', 'O', 'S', 'E', 'D', 'B', '\0'};
 
-/// Sorts keys below `limit` by least-significant-digit radix, 11 bits a pass: 5-8x faster than
-/// std::sort on a point's few thousand keys, the largest share of a build after the features.
+/// Sorts keys below `limit` by least-significant-digit radix, 11 bits a pass. It replaced
+/// std::sort (15% of a build in perf): the cap's database build 836 -> 732 ms.
 void radixSort(std::vector<std::uint32_t>& v, std::uint32_t limit) {
   constexpr int kBits = 11;
+  constexpr std::uint32_t kMask = (1u << kBits) - 1;
   std::vector<std::uint32_t> tmp(v.size());
-  std::array<std::uint32_t, 1u << kBits> count{};
+  std::array<std::uint32_t, kMask + 1> count{};
   const auto bits = static_cast<int>(std::bit_width(limit));
   for (int shift = 0; shift < bits; shift += kBits) {
     count.fill(0);
-    for (const auto x : v) ++count[(x >> shift) & ((1u << kBits) - 1)];
+    for (const auto x : v) ++count[(x >> shift) & kMask];
     std::uint32_t sum = 0;
     for (auto& c : count) sum += std::exchange(c, sum);
-    for (const auto x : v) tmp[count[(x >> shift) & ((1u << kBits) - 1)]++] = x;
+    for (const auto x : v) tmp[count[(x >> shift) & kMask]++] = x;
     v.swap(tmp);
   }
 }

@@ -89,7 +89,6 @@ class NeighbourhoodVoter {
   NeighbourhoodVoter& operator=(const NeighbourhoodVoter&) = delete;
   /// Votes for the points of `voters` that have not voted yet, in parallel.
   void vote(std::span<const std::uint32_t> voters);
-  [[nodiscard]] bool voted(std::uint32_t i) const { return voted_[i] != 0; }
   /// The candidate model points of point i (empty until it has voted, or without an outlier).
   [[nodiscard]] const std::vector<std::uint32_t>& candidates(std::uint32_t i) const { return candidates_[i]; }
   /// All points' candidates, handed over.
