@@ -5,11 +5,23 @@
 
 #include <cmath>
 #include <unordered_map>
+#include <tbb/parallel_for.h>
 
 namespace binpose {
 namespace {
 
 bool facesSensor(const Vec3& p, const Vec3& n, const Vec3& viewpoint) { return n.dot(viewpoint - p) > 0.0f; }
+
+/// Points per task of the parallel loops: fixed, so the partial sums and their order (and so
+/// every bit of the result) are the same whatever the thread count.
+constexpr std::size_t kChunk = 128;
+
+/// One chunk's share of ICP's normal equations.
+struct NormalEquations {
+  Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
+  int pairs = 0;
+};
 
 std::int64_t cellOf(float u, float v, float size) {
   return (static_cast<std::int64_t>(std::floor(u / size)) << 32) ^ (static_cast<std::int64_t>(std::floor(v / size)) & 0xFFFFFFFF);
@@ -34,28 +46,40 @@ Pose refinePose(const Pose& pose, const Points& model_points, const Points& mode
   model_centre /= static_cast<float>(std::max<std::size_t>(1, model_points.size()));
   Pose current = pose;
   float gate = params.max_distance;
+  const std::size_t chunks = (model_points.size() + kChunk - 1) / kChunk;
+  std::vector<NormalEquations> parts(chunks);
   for (int it = 0; it < params.iterations; ++it) {
     // Linearised about the posed model's centre: a part's free motions (the spin of a body of
     // revolution) then stay pure rotations about its own axis instead of leaking into t.
     const Vec3 c = current * model_centre;
-    Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
-    Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
-    int pairs = 0;
-    for (std::size_t i = 0; i < model_points.size(); ++i) {
-      const Vec3 p = current * model_points[i];
-      const Vec3 n = current.linear() * model_normals[i];
-      if (!facesSensor(p, n, params.viewpoint)) continue;
-      std::uint32_t j;
-      float d2;
-      if (!scan_tree.nearest(p, j, d2) || d2 > gate * gate) continue;
-      // residual n.(q - p) against the step (omega, t): n.(omega x (p - c) + t)
-      Eigen::Matrix<double, 6, 1> J;
-      J << (p - c).cross(n).cast<double>(), n.cast<double>();
-      const double r = n.dot(scan[j] - p);
-      A += J * J.transpose();
-      b += J * r;
-      ++pairs;
+    tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t k) {
+      NormalEquations& e = parts[k];
+      e = NormalEquations{};
+      for (std::size_t i = k * kChunk; i < std::min(model_points.size(), (k + 1) * kChunk); ++i) {
+        const Vec3 p = current * model_points[i];
+        const Vec3 n = current.linear() * model_normals[i];
+        if (!facesSensor(p, n, params.viewpoint)) continue;
+        std::uint32_t j;
+        float d2;
+        if (!scan_tree.nearest(p, j, d2) || d2 > gate * gate) continue;
+        // residual n.(q - p) against the step (omega, t): n.(omega x (p - c) + t)
+        Eigen::Matrix<double, 6, 1> J;
+        J << (p - c).cross(n).cast<double>(), n.cast<double>();
+        const double r = n.dot(scan[j] - p);
+        e.A += J * J.transpose();
+        e.b += J * r;
+        ++e.pairs;
+      }
+    });
+    NormalEquations sum;  // the chunks added in order
+    for (const NormalEquations& e : parts) {
+      sum.A += e.A;
+      sum.b += e.b;
+      sum.pairs += e.pairs;
     }
+    Eigen::Matrix<double, 6, 6>& A = sum.A;
+    const Eigen::Matrix<double, 6, 1>& b = sum.b;
+    const int pairs = sum.pairs;
     if (pairs < 12) break;
     A.diagonal().array() += 1e-6 * A.trace() / 6.0;  // damping: no step along a free direction
     const Eigen::Matrix<double, 6, 1> x = A.ldlt().solve(b);
@@ -153,20 +177,35 @@ Evidence SceneEvidence::evaluate(const Pose& pose, const Points& model_points, c
       if (!inserted) it->second = std::min(it->second, f.range);
     }
   }
-  Evidence e;
-  for (const Facing& f : facing) {
-    if (cell > 0 && front.at(cellOf(f.u, f.v, cell)) < f.range - 2 * model_spacing) continue;  // self-occluded
-    ++e.facing;
-    std::uint32_t j;
-    float d2;
-    if (tree_.nearest(f.p, j, d2) && d2 <= tolerance * tolerance) {
-      ++e.supported;
-      if (support) support->push_back(j);
-      continue;
+  // Each facing point's verdict, in parallel (the tree queries), then counted in order.
+  enum Verdict : std::uint8_t { kHidden, kSupported, kContradicted, kUnknown };
+  std::vector<Verdict> verdict(facing.size());
+  std::vector<std::uint32_t> nearest(facing.size());
+  tbb::parallel_for(std::size_t{0}, (facing.size() + kChunk - 1) / kChunk, [&](std::size_t k) {
+    for (std::size_t i = k * kChunk; i < std::min(facing.size(), (k + 1) * kChunk); ++i) {
+      const Facing& f = facing[i];
+      verdict[i] = kUnknown;
+      if (cell > 0 && front.at(cellOf(f.u, f.v, cell)) < f.range - 2 * model_spacing) {
+        verdict[i] = kHidden;  // self-occluded
+        continue;
+      }
+      float d2;
+      if (tree_.nearest(f.p, nearest[i], d2) && d2 <= tolerance * tolerance) {
+        verdict[i] = kSupported;
+        continue;
+      }
+      float range;
+      const long c = this->cell(f.p, range);
+      if (c >= 0 && nearest_[c] > range + 2 * tolerance && std::isfinite(nearest_[c])) verdict[i] = kContradicted;
     }
-    float range;
-    const long c = this->cell(f.p, range);
-    if (c >= 0 && nearest_[c] > range + 2 * tolerance && std::isfinite(nearest_[c])) ++e.contradicted;
+  });
+  Evidence e;
+  for (std::size_t i = 0; i < facing.size(); ++i) {
+    if (verdict[i] == kHidden) continue;
+    ++e.facing;
+    e.supported += verdict[i] == kSupported;
+    e.contradicted += verdict[i] == kContradicted;
+    if (support && verdict[i] == kSupported) support->push_back(nearest[i]);
   }
   return e;
 }
