@@ -10,6 +10,8 @@
 #include <algorithm>
 #include <chrono>
 #include <memory>
+#include <optional>
+#include <tbb/parallel_invoke.h>
 
 namespace binpose {
 namespace {
@@ -83,8 +85,12 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   const Points& model = db_.model().points;
   const Points& model_normals = db_.model().normals;
 
-  const KdTree scan_tree(scan.points);
-  PreparedScene scene = prepareScene(scan.points, scan_tree, p);
+  // The scan's kd-tree (one core) is built while the other core sub-samples.
+  std::optional<KdTree> tree;
+  std::vector<std::uint32_t> chosen;
+  tbb::parallel_invoke([&] { tree.emplace(scan.points); }, [&] { chosen = subsampleScene(scan.points, p); });
+  const KdTree& scan_tree = *tree;
+  PreparedScene scene = prepareScene(scan.points, scan_tree, chosen, p);
   result.sampled_points = scene.points.size();
   if (p.remove_planes) scene = withoutPlanes(std::move(scene), p);
   result.plane_points = result.sampled_points - scene.points.size();

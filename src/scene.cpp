@@ -44,9 +44,8 @@ std::vector<std::uint32_t> voxelSubsample(const Points& points, float voxel) {
   return kept;
 }
 
-PreparedScene prepareScene(const Points& scan, const KdTree& scan_tree, const DetectionParams& params) {
-  PreparedScene scene;
-  if (scan.empty()) return scene;
+std::vector<std::uint32_t> subsampleScene(const Points& scan, const DetectionParams& params) {
+  if (scan.empty()) return {};
   const float spacing = 1.0f / std::sqrt(params.rho_sub);
   std::vector<std::uint32_t> chosen = voxelSubsample(scan, spacing);
   if (params.subsampling == Subsampling::Random) {  // as many points, drawn at random (5.2.1)
@@ -58,6 +57,12 @@ PreparedScene prepareScene(const Points& scan, const KdTree& scan_tree, const De
     chosen.resize(count);
     std::sort(chosen.begin(), chosen.end());
   }
+  return chosen;
+}
+
+PreparedScene prepareScene(const Points& scan, const KdTree& scan_tree, std::span<const std::uint32_t> chosen,
+                           const DetectionParams& params) {
+  PreparedScene scene;
   Points sampled;
   for (const auto i : chosen) sampled.push_back(scan[i]);
   const Points normals = estimateNormals(scan_tree, scan, sampled, params.k_normals, params.viewpoint);
@@ -68,6 +73,10 @@ PreparedScene prepareScene(const Points& scan, const KdTree& scan_tree, const De
     scene.scan_index.push_back(chosen[i]);
   }
   return scene;
+}
+
+PreparedScene prepareScene(const Points& scan, const KdTree& scan_tree, const DetectionParams& params) {
+  return prepareScene(scan, scan_tree, subsampleScene(scan, params), params);
 }
 
 std::vector<std::vector<std::uint32_t>> makeSubGroups(const Points& points, float eta, float r, std::size_t min_size) {

@@ -4,6 +4,7 @@
 #include <binpose/params.hpp>
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
 namespace binpose {
@@ -18,6 +19,16 @@ struct PreparedScene {
 /// Indices of one scan point per occupied cube of side `voxel` (the point nearest its cube's
 /// centroid), ascending. Deterministic.
 std::vector<std::uint32_t> voxelSubsample(const Points& points, float voxel);
+
+/// Indices of the scan points kept at rho_sub (5.2.1), ascending: one per voxel of side
+/// 1/sqrt(rho_sub), or the thesis's random selection of as many points (seeded).
+std::vector<std::uint32_t> subsampleScene(const Points& scan, const DetectionParams& params);
+
+/// The chosen scan points (subsampleScene) with normals by plane fits over k_normals
+/// neighbours in the full scan (5.2.2) through `scan_tree`, facing the viewpoint; points whose
+/// neighbourhood is degenerate are dropped.
+PreparedScene prepareScene(const Points& scan, const KdTree& scan_tree, std::span<const std::uint32_t> chosen,
+                           const DetectionParams& params);
 
 /// Sub-samples the scan to rho_sub (5.2.1): by voxels of side 1/sqrt(rho_sub), or the thesis's
 /// random selection of as many points (seeded). Normals by plane fits over k_normals neighbours
