@@ -41,11 +41,11 @@ void radixSort(std::vector<std::uint32_t>& v, std::uint32_t limit) {
 }
 
 /// Sorted, distinct keys of every directed feature starting at model point i (eq. 5, 7).
-/// `stamp` (one slot per key, owned by the calling thread) marks keys already taken for i, so
-/// that only the distinct keys are sorted.
+/// `taken` (one bit per key, owned by the calling thread, all clear between calls) marks keys
+/// already taken for i, so that only the distinct keys are sorted. A bit per key keeps the marks
+/// in the core's L2 cache (a 32-bit stamp per key did not fit: 17% of a build in perf).
 std::vector<std::uint32_t> keysOfPoint(const OrientedModel& m, const KeySpace& keys, std::size_t i,
-                                       std::vector<std::uint32_t>& stamp) {
-  const auto mark = static_cast<std::uint32_t>(i + 1);
+                                       std::vector<std::uint64_t>& taken) {
   std::vector<std::uint32_t> out;
   out.reserve(m.points.size() * 2);
   std::array<std::uint32_t, KeySpace::kMaxKeys> buf{};
@@ -53,12 +53,16 @@ std::vector<std::uint32_t> keysOfPoint(const OrientedModel& m, const KeySpace& k
   for (std::size_t j = 0; j < m.points.size(); ++j) {
     if (j == i || !computeFeature(m.points[i], m.normals[i], m.points[j], m.normals[j], f)) continue;
     const int n = keys.overlapKeys(f, buf);
-    for (int k = 0; k < n; ++k)
-      if (stamp[buf[k]] != mark) {  // m_i at most once per key
-        stamp[buf[k]] = mark;
+    for (int k = 0; k < n; ++k) {
+      std::uint64_t& word = taken[buf[k] / 64];
+      const std::uint64_t bit = 1ull << (buf[k] % 64);
+      if (!(word & bit)) {  // m_i at most once per key
+        word |= bit;
         out.push_back(buf[k]);
       }
+    }
   }
+  for (const auto key : out) taken[key / 64] = 0;
   radixSort(out, keys.size());
   return out;
 }
@@ -122,8 +126,8 @@ ModelDatabase ModelDatabase::build(OrientedModel model, const QuantizationParams
   db.keys_ = KeySpace(params, model.diameter);
   const std::size_t n = model.points.size();
   std::vector<std::vector<std::uint32_t>> per_point(n);
-  tbb::enumerable_thread_specific<std::vector<std::uint32_t>> stamps(std::vector<std::uint32_t>(db.keys_.size(), 0));
-  tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) { per_point[i] = keysOfPoint(model, db.keys_, i, stamps.local()); });
+  tbb::enumerable_thread_specific<std::vector<std::uint64_t>> taken(std::vector<std::uint64_t>(db.keys_.size() / 64 + 1, 0));
+  tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) { per_point[i] = keysOfPoint(model, db.keys_, i, taken.local()); });
 
   std::uint64_t total = 0;
   for (const auto& k : per_point) total += k.size();
@@ -132,7 +136,7 @@ ModelDatabase ModelDatabase::build(OrientedModel model, const QuantizationParams
   // Compressed rows, filled in parallel over disjoint key ranges (each task owns its keys, and
   // visits the points in order, so the ids under a key come out sorted whatever the threads).
   const std::uint32_t n_keys = db.keys_.size();
-  const std::size_t chunks = 256;
+  const std::size_t chunks = 32;
   auto chunkBegin = [&](std::size_t c) { return static_cast<std::uint32_t>(std::uint64_t(n_keys) * c / chunks); };
   auto forChunk = [&](std::size_t c, auto&& visit) {
     const std::uint32_t lo = chunkBegin(c), hi = chunkBegin(c + 1);
