@@ -107,7 +107,7 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
     std::vector<std::uint32_t> partners;
     if (p.partner_spacing > 0) partners = voxelSubsample(scene.points, p.partner_spacing);
     local = std::make_unique<NeighbourhoodVoter>(db_, scene.points, scene.normals, p.vote_radius, p.candidates_per_point,
-                                                 max_list, partners);
+                                                 max_list, partners, p.candidate_spacing);
     may_vote.assign(scene.points.size(), p.voter_spacing > 0 ? 0 : 1);
     if (p.voter_spacing > 0)
       for (const auto i : voxelSubsample(scene.points, p.voter_spacing)) may_vote[i] = 1;
@@ -116,7 +116,7 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   double vote_ms = 0;  // inside the sub-group loop
 
   std::vector<char> removed(scene.points.size(), 0);
-  ParallelVoter voter(db_, p.candidates_per_point, max_list);
+  ParallelVoter voter(db_, p.candidates_per_point, max_list, p.candidate_spacing);
   std::vector<std::uint32_t> members, voters;
   std::vector<Correspondence> candidates;
   Points clique_model, clique_scene;

@@ -36,6 +36,7 @@ void visit(json& j, DetectionParams& p, bool write) {
   field(j, "local_votes", p.local_votes, write);
   field(j, "vote_radius", p.vote_radius, write);
   field(j, "partner_spacing", p.partner_spacing, write);
+  field(j, "candidate_spacing", p.candidate_spacing, write);
   field(j, "voter_spacing", p.voter_spacing, write);
   field(j, "max_key_share", p.max_key_share, write);
   field(j, "refine", p.refine, write);
@@ -94,9 +95,11 @@ DetectionParams fastPreset() {
   p.local_votes = true;
   // Measured on the bench bins (bench_e2e --methods binpose-fast --params, one run each):
   // partners every 8 mm cut the accumulator increments about 3x at the same recall; 12
-  // candidates instead of 8 then found 70 parts of the six bins' 144 instead of 64.
+  // candidates instead of 8 then found 70 parts of the six bins' 144 instead of 64, and 12
+  // candidates at least 2.7 mm apart (twice the model's sample radius) 74.
   p.partner_spacing = 8.0f;
   p.candidates_per_point = 12;
+  p.candidate_spacing = 2.7f;
   return p;
 }
 
@@ -114,6 +117,7 @@ DetectionParams scaledToModel(const DetectionParams& params, float model_diamete
   p.vote_radius *= s;
   p.voter_spacing *= s;
   p.partner_spacing *= s;
+  p.candidate_spacing *= s;
   p.plane_min_area *= s * s;
   p.plane_tolerance *= s;
   p.eta *= s;
@@ -132,6 +136,8 @@ void validate(const DetectionParams& p) {
   positive(p.vote_radius, "vote_radius", "length in mm");
   positive(p.plane_min_area, "plane_min_area", "area in mm^2");
   positive(p.plane_tolerance, "plane_tolerance", "distance in mm");
+  if (!(p.candidate_spacing >= 0) || !std::isfinite(p.candidate_spacing))
+    throw Error(fmt::format("candidate_spacing must be >= 0 mm, got {}", p.candidate_spacing));
   if (!(p.partner_spacing >= 0) || !std::isfinite(p.partner_spacing)) throw Error(fmt::format("partner_spacing must be >= 0 mm, got {}", p.partner_spacing));
   if (!(p.voter_spacing >= 0) || !std::isfinite(p.voter_spacing)) throw Error(fmt::format("voter_spacing must be >= 0 mm, got {}", p.voter_spacing));
   positive(p.e_gmax, "e_gmax", "length in mm");

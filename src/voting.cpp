@@ -62,8 +62,8 @@ std::vector<std::size_t> selectCandidates(std::span<const std::uint32_t> values,
   return picked;
 }
 
-Voter::Voter(const ModelDatabase& db, int keep, std::uint32_t max_list)
-    : db_(db), keep_(keep), max_list_(max_list), votes_(db.model().points.size(), 0) {}
+Voter::Voter(const ModelDatabase& db, int keep, std::uint32_t max_list, float spacing)
+    : db_(db), keep_(keep), max_list_(max_list), spacing_(spacing), votes_(db.model().points.size(), 0) {}
 
 void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t k,
                       std::span<const std::uint32_t> partners, std::vector<Correspondence>& out) {
@@ -97,7 +97,21 @@ void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t
   std::fill(votes_.begin(), votes_.end(), std::uint16_t{0});
   if (count == 0) return;
   values_.resize(count);
-  for (const std::size_t i : selectCandidates(values_, keep_)) out.push_back({k, touched_[i]});
+  if (keep_ <= 1 || spacing_ <= 0) {
+    for (const std::size_t i : selectCandidates(values_, keep_)) out.push_back({k, touched_[i]});
+    return;
+  }
+  // All upper outliers, best first; each kept unless a better one kept lies within spacing_.
+  const Points& model = db_.model().points;
+  const std::size_t first = out.size();
+  for (const std::size_t i : selectCandidates(values_, static_cast<int>(values_.size()))) {
+    const Vec3& m = model[touched_[i]];
+    bool near = false;
+    for (std::size_t c = first; c < out.size() && !near; ++c) near = (model[out[c].model] - m).squaredNorm() < spacing_ * spacing_;
+    if (near) continue;
+    out.push_back({k, touched_[i]});
+    if (out.size() - first >= static_cast<std::size_t>(keep_)) break;
+  }
 }
 
 void Voter::vote(const Points& points, const Points& normals, std::span<const std::uint32_t> group,
@@ -106,8 +120,8 @@ void Voter::vote(const Points& points, const Points& normals, std::span<const st
   for (const std::uint32_t k : group) votePoint(points, normals, k, group, out);
 }
 
-ParallelVoter::ParallelVoter(const ModelDatabase& db, int keep, std::uint32_t max_list)
-    : voters_([&db, keep, max_list] { return Voter(db, keep, max_list); }) {}
+ParallelVoter::ParallelVoter(const ModelDatabase& db, int keep, std::uint32_t max_list, float spacing)
+    : voters_([&db, keep, max_list, spacing] { return Voter(db, keep, max_list, spacing); }) {}
 
 void ParallelVoter::vote(const Points& points, const Points& normals, std::span<const std::uint32_t> group,
                          std::vector<Correspondence>& out) {
@@ -132,8 +146,9 @@ struct NeighbourhoodVoter::Local {
 };
 
 NeighbourhoodVoter::NeighbourhoodVoter(const ModelDatabase& db, const Points& points, const Points& normals, float radius,
-                                       int keep, std::uint32_t max_list, std::span<const std::uint32_t> partners)
-    : db_(db), points_(points), normals_(normals), radius_(radius), keep_(keep), max_list_(max_list),
+                                       int keep, std::uint32_t max_list, std::span<const std::uint32_t> partners,
+                                       float spacing)
+    : db_(db), points_(points), normals_(normals), radius_(radius), keep_(keep), max_list_(max_list), spacing_(spacing),
       voted_(points.size(), 0), candidates_(points.size()) {
   if (partners.empty()) {
     partners_.resize(points.size());
@@ -144,7 +159,7 @@ NeighbourhoodVoter::NeighbourhoodVoter(const ModelDatabase& db, const Points& po
   for (const auto o : partners_) partner_points_.push_back(points[o]);
   tree_ = std::make_unique<KdTree>(partner_points_);
   locals_ = std::make_unique<tbb::enumerable_thread_specific<Local>>(
-      [this] { return Local{Voter(db_, keep_, max_list_), {}, {}, {}}; });
+      [this] { return Local{Voter(db_, keep_, max_list_, spacing_), {}, {}, {}}; });
 }
 
 NeighbourhoodVoter::~NeighbourhoodVoter() = default;

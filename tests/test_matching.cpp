@@ -282,6 +282,34 @@ TEST(Voting, ParallelVoterGivesTheSequentialPairs) {
   EXPECT_EQ(sequential, parallel);
 }
 
+TEST(Voting, CandidateSpacingKeepsTheBestAndSpreadsTheRest) {
+  Points points, normals;
+  Rng rng(9);
+  movedModel(test::randomPose(rng, Vec3(0, 0, 400)), points, normals);
+  std::vector<std::uint32_t> group(points.size());
+  std::iota(group.begin(), group.end(), 0u);
+  constexpr float kSpacing = 5.0f;
+  const Points& model = lDatabase().model().points;
+  Voter plain(lDatabase(), 6), spread(lDatabase(), 6, UINT32_MAX, kSpacing);
+  int bunched = 0, checked = 0;
+  for (std::uint32_t k = 0; k < points.size(); k += 7) {
+    std::vector<Correspondence> a, b;
+    plain.votePoint(points, normals, k, group, a);
+    spread.votePoint(points, normals, k, group, b);
+    ASSERT_EQ(a.empty(), b.empty());
+    if (a.empty()) continue;
+    ++checked;
+    EXPECT_EQ(a.front().model, b.front().model);  // the best-voted model point stays first
+    EXPECT_LE(b.size(), 6u);
+    for (std::size_t i = 0; i < b.size(); ++i)
+      for (std::size_t j = i + 1; j < b.size(); ++j) EXPECT_GE((model[b[i].model] - model[b[j].model]).norm(), kSpacing);
+    for (std::size_t i = 0; i < a.size(); ++i)
+      for (std::size_t j = i + 1; j < a.size(); ++j) bunched += (model[a[i].model] - model[a[j].model]).norm() < kSpacing;
+  }
+  EXPECT_GT(checked, 20);
+  EXPECT_GT(bunched, 0) << "without spacing no candidates were close: this test would not see the spacing work";
+}
+
 TEST(Voting, LocalVotesPointAtTheTrueModelPoints) {
   Points points, normals;
   Rng rng(5);

@@ -41,7 +41,9 @@ class Voter {
  public:
   /// `keep`: candidates per scene point (1: the thesis's maximum; see selectCandidates).
   /// `max_list`: features whose key lists more model points than this are skipped (default: none).
-  explicit Voter(const ModelDatabase& db, int keep = 1, std::uint32_t max_list = UINT32_MAX);
+  /// `spacing`: with keep > 1, each candidate at least this far (mm) in the model from every
+  /// better-voted one kept (0: none).
+  explicit Voter(const ModelDatabase& db, int keep = 1, std::uint32_t max_list = UINT32_MAX, float spacing = 0.0f);
   /// Appends to `out` the candidate pairs of each point of `group` (indices into points/normals),
   /// each point voting with the whole group (the thesis's sub-group voting).
   void vote(const Points& points, const Points& normals, std::span<const std::uint32_t> group,
@@ -54,6 +56,7 @@ class Voter {
   const ModelDatabase& db_;
   int keep_;
   std::uint32_t max_list_;
+  float spacing_;
   std::vector<std::uint32_t> values_;     ///< the accumulator's non-zero values
   std::vector<std::uint32_t> keys_;       ///< the keys of one point's features
   std::vector<std::uint16_t> votes_;      ///< A_k, one counter per model point
@@ -64,7 +67,7 @@ class Voter {
 /// order whatever the thread count.
 class ParallelVoter {
  public:
-  explicit ParallelVoter(const ModelDatabase& db, int keep = 1, std::uint32_t max_list = UINT32_MAX);
+  explicit ParallelVoter(const ModelDatabase& db, int keep = 1, std::uint32_t max_list = UINT32_MAX, float spacing = 0.0f);
   void vote(const Points& points, const Points& normals, std::span<const std::uint32_t> group,
             std::vector<Correspondence>& out);
 
@@ -81,9 +84,10 @@ class ParallelVoter {
 class NeighbourhoodVoter {
  public:
   /// Only the points listed in `partners` are paired with the voters (all when empty). The
-  /// points and normals must outlive the voter.
+  /// points and normals must outlive the voter. `spacing`: as Voter's.
   NeighbourhoodVoter(const ModelDatabase& db, const Points& points, const Points& normals, float radius, int keep,
-                     std::uint32_t max_list = UINT32_MAX, std::span<const std::uint32_t> partners = {});
+                     std::uint32_t max_list = UINT32_MAX, std::span<const std::uint32_t> partners = {},
+                     float spacing = 0.0f);
   ~NeighbourhoodVoter();
   NeighbourhoodVoter(const NeighbourhoodVoter&) = delete;
   NeighbourhoodVoter& operator=(const NeighbourhoodVoter&) = delete;
@@ -102,6 +106,7 @@ class NeighbourhoodVoter {
   float radius_;
   int keep_;
   std::uint32_t max_list_;
+  float spacing_;
   std::vector<std::uint32_t> partners_;  ///< partner index -> point index
   Points partner_points_;
   std::unique_ptr<KdTree> tree_;
