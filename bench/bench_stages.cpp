@@ -16,6 +16,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 
 using namespace binpose;
 
@@ -105,8 +106,15 @@ BENCHMARK_TEMPLATE(BM_VoteSubGroup, ParallelVoter)->Unit(benchmark::kMillisecond
 void BM_LocalVotes(benchmark::State& state) {  // the fast preset: every sampled point votes once
   const Fixture& f = fixture();
   const DetectionParams p = scaledToModel(presetByName("fast"), f.model.diameter);
-  for (auto _ : state)
-    benchmark::DoNotOptimize(voteNeighbourhoods(f.db, f.scene.points, f.scene.normals, p.vote_radius, p.candidates_per_point));
+  std::vector<std::uint32_t> all(f.scene.points.size());
+  std::iota(all.begin(), all.end(), 0u);
+  for (auto _ : state) {  // as the detector does it: partners thinned, candidates spaced
+    const auto partners = voxelSubsample(f.scene.points, p.partner_spacing);
+    NeighbourhoodVoter voter(f.db, f.scene.points, f.scene.normals, p.vote_radius, p.candidates_per_point, UINT32_MAX,
+                             partners, p.candidate_spacing);
+    voter.vote(all);
+    benchmark::DoNotOptimize(voter.release());
+  }
 }
 BENCHMARK(BM_LocalVotes)->Unit(benchmark::kMillisecond)->UseRealTime();
 
