@@ -148,8 +148,7 @@ struct NeighbourhoodVoter::Local {
 NeighbourhoodVoter::NeighbourhoodVoter(const ModelDatabase& db, const Points& points, const Points& normals, float radius,
                                        int keep, std::uint32_t max_list, std::span<const std::uint32_t> partners,
                                        float spacing)
-    : db_(db), points_(points), normals_(normals), radius_(radius), keep_(keep), max_list_(max_list), spacing_(spacing),
-      voted_(points.size(), 0), candidates_(points.size()) {
+    : points_(points), normals_(normals), radius_(radius), voted_(points.size(), 0), candidates_(points.size()) {
   if (partners.empty()) {
     partners_.resize(points.size());
     std::iota(partners_.begin(), partners_.end(), 0u);
@@ -158,8 +157,8 @@ NeighbourhoodVoter::NeighbourhoodVoter(const ModelDatabase& db, const Points& po
   }
   for (const auto o : partners_) partner_points_.push_back(points[o]);
   tree_ = std::make_unique<KdTree>(partner_points_);
-  locals_ = std::make_unique<tbb::enumerable_thread_specific<Local>>(
-      [this] { return Local{Voter(db_, keep_, max_list_, spacing_), {}, {}, {}}; });
+  // Each thread's copy of this one (its own accumulator and buffers).
+  locals_ = std::make_unique<tbb::enumerable_thread_specific<Local>>(Local{Voter(db, keep, max_list, spacing), {}, {}, {}});
 }
 
 NeighbourhoodVoter::~NeighbourhoodVoter() = default;

@@ -33,7 +33,7 @@ struct DetectionParams {
   /// mm^2; over twice the largest flat face a 60 mm part can have (a 60 mm disc, 2827 mm^2)
   float plane_min_area = 6000.0f;
   float plane_tolerance = 1.5f;   ///< largest distance of a plane's point from it, mm
-  int candidates_per_point = 1;   ///< model points kept per scene point: 1 is eq. 12's maximum; about 8 for
+  int candidates_per_point = 1;   ///< model points kept per scene point: 1 is eq. 12's maximum; 8-12 for
                                   ///< bodies of revolution, whose symmetric points share their votes
   /// Each scene point votes once, with the points within vote_radius of it, and its sub-groups reuse its
   /// candidates (false: it votes again in every sub-group with that group's points, as 4.3 does).
@@ -91,8 +91,9 @@ DetectionParams fastPreset();
 /// A preset by name: "thesis", "default" or "fast".
 DetectionParams presetByName(const std::string& name);
 
-/// Distance-like values (r, eta, e_gmax, sigma_dist, ICP gate, verify tolerance) times s and
-/// rho_sub divided by s^2, for s = model_diameter / 60 mm.
+/// Distance-like values (r, eta, e_gmax, sigma_dist, vote_radius, the voter, partner and
+/// candidate spacings, plane tolerance, ICP gate, verify tolerance) times s, plane_min_area
+/// times s^2 and rho_sub divided by s^2, for s = model_diameter / 60 mm.
 DetectionParams scaledToModel(const DetectionParams& params, float model_diameter);
 
 /// Throws binpose::Error naming the first absurd value.

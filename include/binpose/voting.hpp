@@ -100,13 +100,9 @@ class NeighbourhoodVoter {
 
  private:
   struct Local;
-  const ModelDatabase& db_;
   const Points& points_;
   const Points& normals_;
   float radius_;
-  int keep_;
-  std::uint32_t max_list_;
-  float spacing_;
   std::vector<std::uint32_t> partners_;  ///< partner index -> point index
   Points partner_points_;
   std::unique_ptr<KdTree> tree_;
