@@ -97,12 +97,16 @@ PointCloud readDepthPng(const std::string& path, const Intrinsics& k) {
 
 void writeDepthPng(const std::string& path, const std::vector<std::uint16_t>& depth, int width, int height) {
   if (depth.size() != static_cast<std::size_t>(width) * height) throw Error(fmt::format("{}: depth size mismatch", path));
+  detail::writePng(path, width, height, PNG_FORMAT_LINEAR_Y, depth.data());
+}
+
+void detail::writePng(const std::string& path, int width, int height, std::uint32_t format, const void* pixels) {
   png_image image{};
   image.version = PNG_IMAGE_VERSION;
   image.width = static_cast<png_uint_32>(width);
   image.height = static_cast<png_uint_32>(height);
-  image.format = PNG_FORMAT_LINEAR_Y;
-  if (!png_image_write_to_file(&image, path.c_str(), 0, depth.data(), 0, nullptr))
+  image.format = format;
+  if (!png_image_write_to_file(&image, path.c_str(), 0, pixels, 0, nullptr))
     throw Error(fmt::format("{}: cannot write PNG ({})", path, image.message));
 }
 

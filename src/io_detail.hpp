@@ -17,6 +17,10 @@ namespace binpose::detail {
 /// The whole file as bytes (throws if it cannot be opened or is empty).
 std::string readFileBytes(const std::string& path);
 
+/// Writes `pixels` (rows of `width` pixels of libpng's simplified-API `format`, e.g.
+/// PNG_FORMAT_RGB or PNG_FORMAT_LINEAR_Y) as a PNG file; throws binpose::Error on failure.
+void writePng(const std::string& path, int width, int height, std::uint32_t format, const void* pixels);
+
 /// Lower-cased file extension without the dot ("" when none).
 std::string extensionOf(const std::string& path);
 

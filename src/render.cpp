@@ -1,6 +1,8 @@
 // Pictures of detections: PNG from the sensor's view, coloured PLY.
 #include <binpose/render.hpp>
 
+#include "io_detail.hpp"
+
 #include <binpose/geometry.hpp>
 
 #include <algorithm>
@@ -131,13 +133,7 @@ void renderDetections(const std::string& png_path, const PointCloud& scan, const
             }
         }
   }
-  png_image out{};
-  out.version = PNG_IMAGE_VERSION;
-  out.width = static_cast<png_uint_32>(W);
-  out.height = static_cast<png_uint_32>(H);
-  out.format = PNG_FORMAT_RGB;
-  if (!png_image_write_to_file(&out, png_path.c_str(), 0, image.data(), 0, nullptr))
-    throw Error(fmt::format("{}: cannot write PNG ({})", png_path, out.message));
+  detail::writePng(png_path, W, H, PNG_FORMAT_RGB, image.data());
 }
 
 void exportDetectionsPly(const std::string& ply_path, const PointCloud& scan, const std::vector<Detection>& detections,
