@@ -1,7 +1,7 @@
 // ICP refinement and verification score.
 #include <binpose/refine.hpp>
 
-#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 
 #include <cmath>
 #include <unordered_map>
@@ -27,6 +27,31 @@ std::int64_t cellOf(float u, float v, float size) {
   return (static_cast<std::int64_t>(std::floor(u / size)) << 32) ^ (static_cast<std::int64_t>(std::floor(v / size)) & 0xFFFFFFFF);
 }
 
+/// ICP stops once a step moves no model point more than this, mm.
+constexpr double kConverged = 1e-3;
+
+/// Directions of the 6-dof step whose curvature is below this share of the largest one are
+/// left alone (degeneracy-aware ICP, Zhang et al. 2016): the spin of a body of revolution, the
+/// slide of a flat face. Solving for them fits noise, and the pose drifts there from step to step.
+constexpr double kWeakDirection = 1e-3;
+
+/// The least-squares step (omega, t) of A x = b, solved only along the constrained directions.
+/// Rotations are scaled by `length` (mm at the part's reach) so both halves compare in mm.
+Eigen::Matrix<double, 6, 1> constrainedStep(const Eigen::Matrix<double, 6, 6>& A, const Eigen::Matrix<double, 6, 1>& b,
+                                            double length) {
+  Eigen::Matrix<double, 6, 1> scale;
+  scale << Eigen::Vector3d::Constant(1.0 / length), Eigen::Vector3d::Ones();
+  const Eigen::Matrix<double, 6, 6> As = scale.asDiagonal() * A * scale.asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> eig(As);
+  if (eig.info() != Eigen::Success) return Eigen::Matrix<double, 6, 1>::Constant(NAN);
+  const auto& values = eig.eigenvalues();  // increasing
+  const Eigen::Matrix<double, 6, 1> bs = scale.asDiagonal() * b;
+  Eigen::Matrix<double, 6, 1> y = Eigen::Matrix<double, 6, 1>::Zero();
+  for (int i = 0; i < 6; ++i)
+    if (values(i) > kWeakDirection * values(5)) y += eig.eigenvectors().col(i) * (eig.eigenvectors().col(i).dot(bs) / values(i));
+  return scale.asDiagonal() * y;
+}
+
 }  // namespace
 
 OrientedPoints evenShare(const Points& points, const Points& normals, std::size_t count) {
@@ -44,6 +69,9 @@ Pose refinePose(const Pose& pose, const Points& model_points, const Points& mode
   Vec3 model_centre = Vec3::Zero();
   for (const Vec3& m : model_points) model_centre += m;
   model_centre /= static_cast<float>(std::max<std::size_t>(1, model_points.size()));
+  double length = 0;  // the part's reach from its centre: rotations in mm at its edge
+  for (const Vec3& m : model_points) length = std::max(length, double((m - model_centre).norm()));
+  length = std::max(length, 1e-3);
   Pose current = pose;
   float gate = params.max_distance;
   const std::size_t chunks = (model_points.size() + kChunk - 1) / kChunk;
@@ -77,12 +105,8 @@ Pose refinePose(const Pose& pose, const Points& model_points, const Points& mode
       sum.b += e.b;
       sum.pairs += e.pairs;
     }
-    Eigen::Matrix<double, 6, 6>& A = sum.A;
-    const Eigen::Matrix<double, 6, 1>& b = sum.b;
-    const int pairs = sum.pairs;
-    if (pairs < 12) break;
-    A.diagonal().array() += 1e-6 * A.trace() / 6.0;  // damping: no step along a free direction
-    const Eigen::Matrix<double, 6, 1> x = A.ldlt().solve(b);
+    if (sum.pairs < 12) break;
+    const Eigen::Matrix<double, 6, 1> x = constrainedStep(sum.A, sum.b, length);
     if (!x.allFinite()) break;
     const Eigen::Vector3d omega = x.head<3>();
     Eigen::Matrix3f R = Eigen::Matrix3f::Identity();
@@ -92,7 +116,9 @@ Pose refinePose(const Pose& pose, const Points& model_points, const Points& mode
     step.translation() = c - R * c + x.tail<3>().cast<float>();
     current = step * current;
     gate = std::max(params.min_distance, gate * 0.7f);
-    if (omega.norm() < 1e-5 && x.tail<3>().norm() < 1e-4) break;
+    // Converged when no model point moves more than kConverged (the step's rotation at the
+    // part's reach plus its translation).
+    if (omega.norm() * length + x.tail<3>().norm() < kConverged) break;
   }
   return current;
 }
