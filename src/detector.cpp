@@ -45,18 +45,23 @@ Detector::Detector(const ModelDatabase& db, const DetectionParams& params)
   for (const Vec3& p : m) model_radius_ = std::max(model_radius_, (p - model_centroid_).norm());
 }
 
-float Detector::overlap(const Pose& a, const Pose& b) const {
-  if ((a * model_centroid_ - b * model_centroid_).norm() > 2 * model_radius_) return 0.0f;
-  const Points& model = db_.model().points;
+bool Detector::mostlyOverlaps(const Pose& a, const Pose& b) const {
+  if ((a * model_centroid_ - b * model_centroid_).norm() > 2 * model_radius_) return false;
+  const Points& model = icp_model_.points;  // an even share: the same fraction as all points
   const Pose b_from_a = b.inverse() * a;
   const float near_distance = 0.1f * db_.model().diameter;  // the usual correctness radius (ADD < 0.1 d)
-  int near = 0;
-  for (const Vec3& m : model) {
+  const std::size_t half = model.size() / 2;
+  std::size_t near = 0, far = 0;
+  for (const Vec3& m : model) {  // stops as soon as the answer is known
     std::uint32_t j;
     float d2;
-    if (model_tree_.nearest(b_from_a * m, j, d2) && d2 <= near_distance * near_distance) ++near;
+    if (model_tree_.nearest(b_from_a * m, j, d2) && d2 <= near_distance * near_distance) {
+      if (++near > half) return true;
+    } else if (++far >= model.size() - half) {
+      return false;
+    }
   }
-  return static_cast<float>(near) / static_cast<float>(model.size());
+  return false;
 }
 
 std::vector<Detection> Detector::suppressDuplicates(std::vector<Hypothesis> hypotheses, std::size_t scan_size) const {
@@ -68,7 +73,7 @@ std::vector<Detection> Detector::suppressDuplicates(std::vector<Hypothesis> hypo
     std::size_t taken = 0;
     for (const auto i : h.support) taken += claimed[i];
     if (4 * taken > h.support.size()) continue;  // a quarter explained already: not a new object
-    if (std::any_of(kept.begin(), kept.end(), [&](const Detection& k) { return overlap(h.detection.pose, k.pose) > 0.5f; }))
+    if (std::any_of(kept.begin(), kept.end(), [&](const Detection& k) { return mostlyOverlaps(h.detection.pose, k.pose); }))
       continue;  // another pose of an object already found (a near-symmetric flip, say)
     for (const auto i : h.support) claimed[i] = 1;
     kept.push_back(h.detection);
@@ -204,9 +209,11 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   result.timing.refine_ms = refine_ms;
   result.timing.match_ms = msSince(t_match) - refine_ms - vote_ms;
   if (p.verify) {
+    const auto t_suppress = Clock::now();
     result.detections = suppressDuplicates(std::move(hypotheses), scan.size());
     if (p.max_instances > 0 && static_cast<int>(result.detections.size()) > p.max_instances)
       result.detections.resize(static_cast<std::size_t>(p.max_instances));
+    result.timing.match_ms += msSince(t_suppress);
   } else {
     for (Hypothesis& h : hypotheses) result.detections.push_back(h.detection);
   }

@@ -19,7 +19,7 @@ struct Detection {
 };
 
 struct DetectionTiming {
-  double preprocess_ms = 0, vote_ms = 0, match_ms = 0, refine_ms = 0, total_ms = 0;  ///< vote_ms: all voting (4.3-4.4); match_ms: clique and pose
+  double preprocess_ms = 0, vote_ms = 0, match_ms = 0, refine_ms = 0, total_ms = 0;  ///< vote_ms: all voting (4.3-4.4); match_ms: clique, pose and duplicate suppression
 };
 
 struct DetectionResult {
@@ -51,8 +51,9 @@ class Detector {
   [[nodiscard]] const DetectionParams& params() const { return params_; }
 
  private:
-  /// Share of the model's points that, posed by `a`, lie within 0.1 diameter of the model posed by `b`.
-  [[nodiscard]] float overlap(const Pose& a, const Pose& b) const;
+  /// True when over half of the model's points (the ICP share of them), posed by `a`, lie
+  /// within 0.1 diameter of the model posed by `b`.
+  [[nodiscard]] bool mostlyOverlaps(const Pose& a, const Pose& b) const;
   /// Best first, keeps a detection unless it is another pose of an object already kept: over a
   /// quarter of its supporting scan points are claimed (each scan point belongs to one object),
   /// or its model mostly overlaps a kept one's (a near-symmetric flip, say).
