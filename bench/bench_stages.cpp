@@ -27,7 +27,11 @@ struct Fixture {
   Mesh mesh = builtinPart("cap");
   OrientedModel model = prepareModel(mesh, ModelParams{});
   ModelDatabase db = ModelDatabase::build(model, defaultQuantization(model.diameter));
-  DetectionParams params = scaledToModel(defaultPreset(), model.diameter);
+  DetectionParams params = [this] {
+    DetectionParams p = scaledToModel(defaultPreset(), model.diameter);
+    p.plane_min_area = boundingFaceArea(model.points);  // as the Detector resolves 0
+    return p;
+  }();
   SimulatedScene bin = [this] {
     SimulationParams sp;
     sp.seed = 7;

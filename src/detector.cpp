@@ -20,8 +20,8 @@ using Clock = std::chrono::steady_clock;
 double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
 /// The scene without the points of the bin's floor and walls.
-PreparedScene withoutPlanes(PreparedScene scene, const DetectionParams& p) {
-  const std::vector<char> flat = largePlanes(scene.points, scene.normals, p.rho_sub, planeParams(p));
+PreparedScene withoutPlanes(PreparedScene scene, const DetectionParams& p, std::vector<Plane>& planes) {
+  const std::vector<char> flat = largePlanes(scene.points, scene.normals, p.rho_sub, planeParams(p), &planes);
   PreparedScene kept;
   for (std::size_t i = 0; i < flat.size(); ++i) {
     if (flat[i]) continue;
@@ -38,6 +38,7 @@ Detector::Detector(const ModelDatabase& db, const DetectionParams& params)
     : db_(db), params_(params), model_tree_(db.model().points),
       icp_model_(evenShare(db.model().points, db.model().normals, static_cast<std::size_t>(std::max(0, params.icp_model_points)))) {
   validate(params_);
+  if (params_.plane_min_area == 0) params_.plane_min_area = boundingFaceArea(db.model().points);
   const Points& m = db.model().points;
   model_centroid_ = Vec3::Zero();
   for (const Vec3& p : m) model_centroid_ += p;
@@ -97,9 +98,10 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   const KdTree& scan_tree = *tree;
   PreparedScene scene = prepareScene(scan.points, scan_tree, chosen, p);
   result.sampled_points = scene.points.size();
-  if (p.remove_planes) scene = withoutPlanes(std::move(scene), p);
+  std::vector<Plane> planes;  // the bin's
+  if (p.remove_planes) scene = withoutPlanes(std::move(scene), p, planes);
   result.plane_points = result.sampled_points - scene.points.size();
-  const SceneEvidence evidence(scan.points, scan_tree, p.viewpoint);
+  const SceneEvidence evidence(scan.points, scan_tree, p.viewpoint, planes, std::min(p.verify_tolerance, p.plane_tolerance));
   const auto groups = makeSubGroups(scene.points, p.eta, p.r, static_cast<std::size_t>(p.C_n));
   result.subgroups = groups.size();
   result.timing.preprocess_ms = msSince(t0);

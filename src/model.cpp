@@ -1,6 +1,8 @@
 // Offline model preparation (thesis chapter 6).
 #include <binpose/model.hpp>
 
+#include <Eigen/Eigenvalues>
+
 #include <binpose/geometry.hpp>
 #include <binpose/normals.hpp>
 #include <binpose/sampling.hpp>
@@ -118,6 +120,24 @@ OrientedModel prepareModel(const PointCloud& cloud, const ModelParams& params) {
   if (model.points.size() < 16) throw Error("model cloud has too few points with a usable normal");
   model.diameter = diameter(model.points);
   return model;
+}
+
+float boundingFaceArea(const Points& points) {
+  if (points.size() < 3) return 0.0f;
+  Vec3 mean = Vec3::Zero();
+  for (const Vec3& p : points) mean += p;
+  mean /= static_cast<float>(points.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const Vec3& p : points) cov += (p - mean).cast<double>() * (p - mean).cast<double>().transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);  // eigenvalues increasing
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
+  for (const Vec3& p : points) {
+    const Eigen::Vector3d q = eig.eigenvectors().transpose() * (p - mean).cast<double>();
+    lo = lo.cwiseMin(q);
+    hi = hi.cwiseMax(q);
+  }
+  const Eigen::Vector3d extent = hi - lo;
+  return static_cast<float>(extent(1) * extent(2));
 }
 
 }  // namespace binpose

@@ -134,7 +134,8 @@ void validate(const DetectionParams& p) {
   positive(p.rho_sub, "rho_sub", "density in points/mm^2");
   positive(p.eta, "eta (grid spacing)", "length in mm");
   positive(p.vote_radius, "vote_radius", "length in mm");
-  positive(p.plane_min_area, "plane_min_area", "area in mm^2");
+  if (!(p.plane_min_area >= 0) || !std::isfinite(p.plane_min_area))
+    throw Error(fmt::format("plane_min_area must be >= 0 mm^2 (0: from the model), got {}", p.plane_min_area));
   positive(p.plane_tolerance, "plane_tolerance", "distance in mm");
   if (!(p.candidate_spacing >= 0) || !std::isfinite(p.candidate_spacing))
     throw Error(fmt::format("candidate_spacing must be >= 0 mm, got {}", p.candidate_spacing));

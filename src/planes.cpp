@@ -55,7 +55,8 @@ PlaneParams planeParams(const DetectionParams& params) {
   return planes;
 }
 
-std::vector<char> largePlanes(const Points& points, const Points& normals, float density, const PlaneParams& params) {
+std::vector<char> largePlanes(const Points& points, const Points& normals, float density, const PlaneParams& params,
+                              std::vector<Plane>* removed) {
   if (points.size() != normals.size()) throw Error("largePlanes: one normal per point needed");
   if (!(density > 0) || !(params.min_area > 0) || !(params.tolerance > 0) || !(params.link > 0))
     throw Error(fmt::format("plane removal needs positive density, area, tolerance and link, got {}, {}, {}, {}", density,
@@ -97,9 +98,13 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
     std::size_t behind = 0;
     for (const Vec3& p : points) behind += best_n.dot(p) - best_d < -3.0f * params.tolerance;
     if (static_cast<float>(behind) > params.max_behind * static_cast<float>(points.size())) continue;  // not background
+    bool taken = false;
     for (const auto& patch : patches(points, inliers, params.link))
-      if (patch.size() >= min_count)
+      if (patch.size() >= min_count) {
         for (const auto i : patch) plane[i] = 1;
+        taken = true;
+      }
+    if (taken && removed) removed->push_back({best_n, best_d});
   }
   return plane;
 }

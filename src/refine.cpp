@@ -3,6 +3,7 @@
 
 #include <Eigen/Eigenvalues>
 
+#include <algorithm>
 #include <cmath>
 #include <unordered_map>
 #include <tbb/parallel_for.h>
@@ -123,8 +124,10 @@ Pose refinePose(const Pose& pose, const Points& model_points, const Points& mode
   return current;
 }
 
-SceneEvidence::SceneEvidence(const Points& scan, const KdTree& tree, const Vec3& viewpoint)
-    : tree_(tree), viewpoint_(viewpoint), to_view_(Eigen::Matrix3f::Identity()) {
+SceneEvidence::SceneEvidence(const Points& scan, const KdTree& tree, const Vec3& viewpoint, std::vector<Plane> background,
+                             float background_tolerance)
+    : tree_(tree), viewpoint_(viewpoint), background_(std::move(background)),
+      background_tolerance_(background_tolerance), to_view_(Eigen::Matrix3f::Identity()) {
   if (scan.empty()) return;
   Vec3 axis = Vec3::Zero();
   for (const Vec3& p : scan) axis += p - viewpoint;
@@ -217,7 +220,9 @@ Evidence SceneEvidence::evaluate(const Pose& pose, const Points& model_points, c
       }
       float d2;
       if (tree_.nearest(f.p, nearest[i], d2) && d2 <= tolerance * tolerance) {
-        verdict[i] = kSupported;
+        const bool on_bin = std::any_of(background_.begin(), background_.end(),
+                                        [&](const Plane& b) { return b.distance(f.p) <= background_tolerance_; });
+        if (!on_bin) verdict[i] = kSupported;
         continue;
       }
       float range;

@@ -3,6 +3,7 @@
 #include <binpose/io.hpp>
 #include <binpose/model.hpp>
 #include <binpose/model_database.hpp>
+#include <binpose/shapes.hpp>
 
 #include "test_util.hpp"
 
@@ -74,3 +75,14 @@ TEST(Model, RejectsAbsurdParameters) {
   EXPECT_THROW(prepareModel(tri, p), Error);
 }
 
+
+TEST(Model, BoundingFaceAreaIsTheLargestFaceOfATurnedBox) {
+  const OrientedModel box = prepareModel(builtinPart("box"), ModelParams{});  // 60 x 40 x 20 mm
+  const Eigen::Matrix3f turn = Eigen::AngleAxisf(0.7f, Vec3(1, 2, 3).normalized()).toRotationMatrix();
+  Points turned;
+  for (const Vec3& p : box.points) turned.push_back(turn * p + Vec3(100, -50, 400));
+  EXPECT_NEAR(boundingFaceArea(turned), 60.0 * 40.0, 0.03 * 2400);  // axes from samples: a little tilted
+  // The cap (radius 30, height 20): its widest section is the 60 mm square around its disc.
+  EXPECT_NEAR(boundingFaceArea(prepareModel(builtinPart("cap"), ModelParams{}).points), 3600.0, 0.03 * 3600);
+  EXPECT_EQ(boundingFaceArea({}), 0.0f);
+}

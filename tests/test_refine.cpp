@@ -65,5 +65,25 @@ TEST(Refine, BodyOfRevolutionFindsItsAxisAndKeepsItsSpin) {
   EXPECT_LT(angleDeg(r.linear(), spun.linear()), 0.5);
 }
 
+// A part posed flush with the bin's floor is supported by every floor point under it; with the
+// floor given as background it is not supported at all.
+TEST(Evidence, TheBinsPlanesDoNotSupportAPart) {
+  const OrientedModel box = prepareModel(builtinPart("box"), ModelParams{});  // 60 x 40 x 20, centred
+  PointCloud floor;  // the plane z = 500 mm, seen from the origin
+  for (float x = -100; x <= 100; x += 0.5f)
+    for (float y = -100; y <= 100; y += 0.5f) floor.points.emplace_back(x, y, 500.0f);
+  const KdTree tree(floor.points);
+  Pose flush = Pose::Identity();  // the box's -z face (facing the sensor) in the floor
+  flush.translation() = Vec3(10, -5, 510);
+  const auto score = [&](std::vector<Plane> background) {
+    const SceneEvidence evidence(floor.points, tree, Vec3::Zero(), std::move(background), 1.0f);
+    return evidence.evaluate(flush, box.points, box.normals, 1.0f, box.sample_radius).score();
+  };
+  EXPECT_GT(score({}), 0.8f);
+  EXPECT_LT(score({Plane{Vec3::UnitZ(), 500.0f}}), 0.05f);
+  // A plane elsewhere changes nothing.
+  EXPECT_GT(score({Plane{Vec3::UnitX(), 300.0f}}), 0.8f);
+}
+
 }  // namespace
 }  // namespace binpose

@@ -41,4 +41,8 @@ OrientedModel prepareModel(const Mesh& mesh, const ModelParams& params);
 /// usable normal are dropped.
 OrientedModel prepareModel(const PointCloud& cloud, const ModelParams& params);
 
+/// Area of the points' bounding rectangle across their two longest principal axes, mm^2: a
+/// bound on the largest flat face the part can show (exact for a box).
+float boundingFaceArea(const Points& points);
+
 }  // namespace binpose

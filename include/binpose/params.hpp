@@ -30,8 +30,11 @@ struct DetectionParams {
   /// The bin's floor and walls (connected flat patches of at least plane_min_area) taken out of
   /// the sampled scene before voting (planes.hpp). They stay in the scan for ICP and verification.
   bool remove_planes = true;
-  /// mm^2; over twice the largest flat face a 60 mm part can have (a 60 mm disc, 2827 mm^2)
-  float plane_min_area = 6000.0f;
+  /// Smallest flat patch removed, mm^2. 0: the part's own bound on a flat face (boundingFaceArea
+  /// of the model, set by the Detector): no face of the part is that large, and a bin floor or
+  /// wall seen in pieces between crowded parts still is. (Scaling 6000 mm^2 for the 60 mm part
+  /// by diameter^2 gave 17 500 mm^2 for IPD's 102 mm bracket: no plane of its bins was removed.)
+  float plane_min_area = 0.0f;
   float plane_tolerance = 1.5f;   ///< largest distance of a plane's point from it, mm
   int candidates_per_point = 1;   ///< model points kept per scene point: 1 is eq. 12's maximum; 8-12 for
                                   ///< bodies of revolution, whose symmetric points share their votes
@@ -92,7 +95,7 @@ DetectionParams fastPreset();
 DetectionParams presetByName(const std::string& name);
 
 /// Distance-like values (r, eta, e_gmax, sigma_dist, vote_radius, the voter, partner and
-/// candidate spacings, plane tolerance, ICP gate, verify tolerance) times s, plane_min_area
+/// candidate spacings, plane tolerance, ICP gate, verify tolerance) times s, plane_min_area (when set)
 /// times s^2 and rho_sub divided by s^2, for s = model_diameter / 60 mm.
 DetectionParams scaledToModel(const DetectionParams& params, float model_diameter);
 

@@ -5,6 +5,7 @@
 #include <binpose/params.hpp>
 #include <binpose/types.hpp>
 
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -23,6 +24,13 @@ struct PlaneParams {
   std::uint64_t seed = 1;
 };
 
+/// A plane n . x = d (n a unit vector, d in mm).
+struct Plane {
+  Vec3 normal = Vec3::UnitZ();
+  float d = 0;
+  [[nodiscard]] float distance(const Vec3& x) const { return std::abs(normal.dot(x) - d); }
+};
+
 /// The plane search the detector runs for `params` (absolute units): its plane_min_area and
 /// plane_tolerance, patches linked over 2.5 sample spacings (1 / sqrt(rho_sub)), its seed.
 PlaneParams planeParams(const DetectionParams& params);
@@ -33,8 +41,9 @@ PlaneParams planeParams(const DetectionParams& params);
 /// planes go, with (almost) nothing behind them: the floor, the walls, a table; the tops of a
 /// layer of parts lying flat, touching one another, have the floor behind them and stay, and
 /// coplanar faces of parts that do not touch stay. Normals face the sensor. Returns one flag per
-/// point: 1 on a removed plane.
+/// point: 1 on a removed plane; `removed`, when given, receives the planes that lost a patch.
 /// Deterministic for a given seed.
-std::vector<char> largePlanes(const Points& points, const Points& normals, float density, const PlaneParams& params);
+std::vector<char> largePlanes(const Points& points, const Points& normals, float density, const PlaneParams& params,
+                              std::vector<Plane>* removed = nullptr);
 
 }  // namespace binpose

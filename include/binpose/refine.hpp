@@ -1,6 +1,7 @@
 #pragma once
 // Beyond the thesis: pose refinement by ICP and a verification score, both against the full scan.
 #include <binpose/kdtree.hpp>
+#include <binpose/planes.hpp>
 #include <binpose/pose.hpp>
 
 #include <algorithm>
@@ -47,7 +48,11 @@ struct Evidence {
 /// free-space contradictions.
 class SceneEvidence {
  public:
-  SceneEvidence(const Points& scan, const KdTree& tree, const Vec3& viewpoint);
+  /// `background`: the bin's planes (planes.hpp). A model point within `background_tolerance`
+  /// of one is not supported by the scan there: the bin is seen, not the part. Without this an
+  /// L-shaped part fits the corner of floor and wall and scores as if it were there.
+  SceneEvidence(const Points& scan, const KdTree& tree, const Vec3& viewpoint, std::vector<Plane> background = {},
+                float background_tolerance = 0);
   /// `model_spacing`: the model's sample spacing, mm, for its self-occlusion test (0: none).
   /// The scan points that support the pose are appended to `support` when it is given.
   [[nodiscard]] Evidence evaluate(const Pose& pose, const Points& model_points, const Points& model_normals,
@@ -60,6 +65,8 @@ class SceneEvidence {
 
   const KdTree& tree_;
   Vec3 viewpoint_;
+  std::vector<Plane> background_;
+  float background_tolerance_ = 0;
   Eigen::Matrix3f to_view_;  ///< rotation into the image frame (z along the scan's mean direction)
   float bin_ = 0;            ///< cell size in tangent-plane units
   float u0_ = 0, v0_ = 0;
