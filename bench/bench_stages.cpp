@@ -122,6 +122,21 @@ void BM_LocalVotes(benchmark::State& state) {  // the fast preset: every sampled
 }
 BENCHMARK(BM_LocalVotes)->Unit(benchmark::kMillisecond)->UseRealTime();
 
+void BM_ConsistencyGraph(benchmark::State& state) {  // 4.5, eq. 13-16, on the fast preset's candidates of the median sub-group
+  const Fixture& f = fixture();
+  const DetectionParams p = scaledToModel(presetByName("fast"), f.model.diameter);
+  const auto partners = voxelSubsample(f.scene.points, p.partner_spacing);
+  NeighbourhoodVoter voter(f.db, f.scene.points, f.scene.normals, p.vote_radius, p.candidates_per_point, UINT32_MAX,
+                           partners, p.candidate_spacing);
+  voter.vote(f.medianGroup());
+  std::vector<Correspondence> cps;
+  for (const auto i : f.medianGroup())
+    for (const auto m : voter.candidates(i)) cps.push_back({i, m});
+  for (auto _ : state) benchmark::DoNotOptimize(consistencyGraph(cps, f.scene.points, f.model.points, p.e_gmax));
+  state.counters["vertices"] = static_cast<double>(cps.size());
+}
+BENCHMARK(BM_ConsistencyGraph)->Unit(benchmark::kMillisecond)->UseRealTime();
+
 void BM_CliqueSearch(benchmark::State& state) {  // 4.5 on the median sub-group's candidate pairs
   const Fixture& f = fixture();
   std::vector<Correspondence> cps;

@@ -125,13 +125,13 @@ std::vector<char> coreOf(const Graph& g, std::vector<int> degree, int k) {
   return in_core;
 }
 
-/// Row i of the consistency graph (eq. 13-16), 64 partners to a word. Built for AVX2 as well
-/// as the baseline, the better one chosen at run time; no FMA, so every build computes the same
-/// bits.
+/// Row i of the consistency graph (eq. 13-16) from word `first` on, 64 partners to a word.
+/// Built for AVX2 as well as the baseline, the better one chosen at run time; no FMA, so every
+/// build computes the same bits.
 __attribute__((target_clones("avx2", "default")))
-void linkRow(const std::array<const float*, 6>& c, int i, int n, float e_gmax, std::uint64_t* row) {
+void linkRow(const std::array<const float*, 6>& c, int i, int n, int first, float e_gmax, std::uint64_t* row) {
   alignas(64) std::array<std::uint8_t, 64> linked{};
-  for (int w0 = 0; w0 < n; w0 += 64) {
+  for (int w0 = first * 64; w0 < n; w0 += 64) {
     const int count = std::min(64, n - w0);
     for (int b = 0; b < count; ++b) {
       const int j = w0 + b;
@@ -144,7 +144,18 @@ void linkRow(const std::array<const float*, 6>& c, int i, int n, float e_gmax, s
     for (int b = 0; b < count; ++b) word |= std::uint64_t{linked[b]} << b;
     row[w0 / 64] = word;
   }
-  row[i / 64] &= ~(1ull << (i % 64));
+}
+
+/// In-place transpose of a 64 x 64 bit block (bit c of a[r] <-> bit r of a[c]), by swapping
+/// ever smaller sub-blocks (Warren, Hacker's Delight 7-3).
+void transpose64(std::array<std::uint64_t, 64>& a) {
+  std::uint64_t m = 0x00000000FFFFFFFFull;
+  for (int j = 32; j != 0; j >>= 1, m ^= m << j)
+    for (int k = 0; k < 64; k = ((k | j) + 1) & ~j) {
+      const std::uint64_t t = ((a[k] >> j) ^ a[k | j]) & m;
+      a[k] ^= t << j;
+      a[k | j] ^= t;
+    }
 }
 
 }  // namespace
@@ -199,9 +210,10 @@ CliqueResult maximumClique(const Graph& g, std::uint64_t work_limit) {
 Graph consistencyGraph(std::span<const Correspondence> cps, const Points& scene, const Points& model, float e_gmax) {
   const int n = static_cast<int>(cps.size());
   Graph g(n);
-  // Coordinates side by side, so the inner loop runs on SIMD lanes. Each row is computed in full
-  // (i, j) and (j, i) alike: twice the arithmetic, but whole words written and no bit mirrored;
-  // the two distances are bitwise equal either way round, so the graph stays symmetric.
+  // Coordinates side by side, so the inner loop runs on SIMD lanes. Row i is computed from its
+  // diagonal word on (the 64 x 64 blocks on and above the diagonal); the blocks below are those
+  // above, bit-transposed. The two distances are bitwise equal either way round, so this is the
+  // graph of every (i, j) computed in full.
   std::array<std::vector<float>, 6> c;
   for (auto& v : c) v.resize(cps.size());
   for (int i = 0; i < n; ++i)
@@ -211,7 +223,20 @@ Graph consistencyGraph(std::span<const Correspondence> cps, const Points& scene,
     }
   const std::array<const float*, 6> coords{c[0].data(), c[1].data(), c[2].data(), c[3].data(), c[4].data(), c[5].data()};
   tbb::parallel_for(tbb::blocked_range<int>(0, n, 32), [&](const tbb::blocked_range<int>& rows) {  // rows apart
-    for (int i = rows.begin(); i < rows.end(); ++i) linkRow(coords, i, n, e_gmax, g.mutableRow(i));
+    for (int i = rows.begin(); i < rows.end(); ++i) {
+      std::uint64_t* row = g.mutableRow(i);
+      linkRow(coords, i, n, i / 64, e_gmax, row);
+      row[i / 64] &= ~(1ull << (i % 64));
+    }
+  });
+  const int blocks = g.words();
+  tbb::parallel_for(1, blocks, [&](int J) {  // block J's rows, words 0..J-1, from blocks (I, J) above
+    std::array<std::uint64_t, 64> a;
+    for (int I = 0; I < J; ++I) {
+      for (int r = 0; r < 64; ++r) a[r] = I * 64 + r < n ? g.row(I * 64 + r)[J] : 0;
+      transpose64(a);
+      for (int r = 0; r < 64 && J * 64 + r < n; ++r) g.mutableRow(J * 64 + r)[I] = a[r];
+    }
   });
   return g;
 }
