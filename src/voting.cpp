@@ -38,27 +38,46 @@ Fourths fourthsOfHistogram(std::span<const std::uint32_t> histogram) {
   return {medianOf(histogram, 0, half), medianOf(histogram, n - half, half)};
 }
 
-std::vector<std::size_t> selectCandidates(std::span<const std::uint32_t> values, int keep) {
-  if (values.empty()) return {};
+void upperOutliers(std::span<const std::uint32_t> values, std::vector<std::uint32_t>& histogram,
+                   std::vector<std::size_t>& out) {
+  out.clear();
+  if (values.empty()) return;
   const std::uint32_t top = *std::max_element(values.begin(), values.end());
-  std::vector<std::uint32_t> histogram(std::size_t{top} + 1, 0);
+  histogram.assign(std::size_t{top} + 1, 0);
   for (const auto v : values) ++histogram[v];
   const Fourths f = fourthsOfHistogram(histogram);
-  if (!(top > f.upper + 3.0 * f.spread())) return {};  // eq. 11: no upper outlier, no candidate
-  std::vector<std::size_t> picked;
-  if (keep <= 1) {
-    for (std::size_t i = 0; i < values.size(); ++i)
-      if (values[i] == top) picked.push_back(i);  // eq. 12: the maximum (ties all kept)
-    return picked;
-  }
   const double limit = f.upper + 3.0 * f.spread();
+  if (!(top > limit)) return;  // eq. 11: no upper outlier, no candidate
   for (std::size_t i = 0; i < values.size(); ++i)
-    if (values[i] > limit) picked.push_back(i);
+    if (values[i] > limit) out.push_back(i);
+}
+
+namespace {
+
+/// selectCandidates into `picked`, with the caller's scratch.
+void selectInto(std::span<const std::uint32_t> values, int keep, std::vector<std::uint32_t>& histogram,
+                std::vector<std::size_t>& picked) {
+  upperOutliers(values, histogram, picked);
+  if (picked.empty()) return;
+  if (keep <= 1) {  // eq. 12: the maximum (ties all kept)
+    std::uint32_t top = 0;
+    for (const auto i : picked) top = std::max(top, values[i]);
+    std::erase_if(picked, [&](std::size_t i) { return values[i] != top; });
+    return;
+  }
   const auto cut = picked.begin() + std::min<std::ptrdiff_t>(keep, static_cast<std::ptrdiff_t>(picked.size()));
   std::partial_sort(picked.begin(), cut, picked.end(), [&](std::size_t a, std::size_t b) {
     return values[a] != values[b] ? values[a] > values[b] : a < b;
   });
   picked.erase(cut, picked.end());
+}
+
+}  // namespace
+
+std::vector<std::size_t> selectCandidates(std::span<const std::uint32_t> values, int keep) {
+  std::vector<std::uint32_t> histogram;
+  std::vector<std::size_t> picked;
+  selectInto(values, keep, histogram, picked);
   return picked;
 }
 
@@ -98,18 +117,28 @@ void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t
   if (count == 0) return;
   values_.resize(count);
   if (keep_ <= 1 || spacing_ <= 0) {
-    for (const std::size_t i : selectCandidates(values_, keep_)) out.push_back({k, touched_[i]});
+    selectInto(values_, keep_, histogram_, outliers_);
+    for (const std::size_t i : outliers_) out.push_back({k, touched_[i]});
     return;
   }
-  // All upper outliers, best first; each kept unless a better one kept lies within spacing_.
+  // The upper outliers best first (sorted a batch at a time: usually the first batch holds all
+  // that are kept); each kept unless a better one kept lies within spacing_.
   const Points& model = db_.model().points;
   const std::size_t first = out.size();
-  for (const std::size_t i : selectCandidates(values_, static_cast<int>(values_.size()))) {
-    const Vec3& m = model[touched_[i]];
+  upperOutliers(values_, histogram_, outliers_);
+  const auto better = [&](std::size_t a, std::size_t b) { return values_[a] != values_[b] ? values_[a] > values_[b] : a < b; };
+  const std::size_t batch = 4 * static_cast<std::size_t>(keep_);
+  for (std::size_t r = 0, sorted = 0; r < outliers_.size(); ++r) {
+    if (r == sorted) {
+      sorted = std::min(outliers_.size(), sorted + batch);
+      std::partial_sort(outliers_.begin() + static_cast<std::ptrdiff_t>(r),
+                        outliers_.begin() + static_cast<std::ptrdiff_t>(sorted), outliers_.end(), better);
+    }
+    const Vec3& m = model[touched_[outliers_[r]]];
     bool near = false;
     for (std::size_t c = first; c < out.size() && !near; ++c) near = (model[out[c].model] - m).squaredNorm() < spacing_ * spacing_;
     if (near) continue;
-    out.push_back({k, touched_[i]});
+    out.push_back({k, touched_[outliers_[r]]});
     if (out.size() - first >= static_cast<std::size_t>(keep_)) break;
   }
 }

@@ -29,6 +29,12 @@ struct Fourths {
 /// Fourths of the values v with histogram[v] occurrences each (at least one value).
 Fourths fourthsOfHistogram(std::span<const std::uint32_t> histogram);
 
+/// Eq. 10-11 on accumulator values: the indices of the upper outliers (> x_u + 3 xi_s), in index
+/// order, into `out` (cleared; nothing when there is no outlier). `histogram` is scratch, kept
+/// by the caller so nothing is allocated per call.
+void upperOutliers(std::span<const std::uint32_t> values, std::vector<std::uint32_t>& histogram,
+                   std::vector<std::size_t>& out);
+
 /// Selection of eq. 11-12 on accumulator values: the indices whose value is an upper outlier
 /// (> x_u + 3 xi_s) and equals the largest value; empty when there is no outlier.
 /// With `keep` > 1 (beyond the thesis): the `keep` highest upper outliers instead of only the
@@ -61,6 +67,8 @@ class Voter {
   std::vector<std::uint32_t> keys_;       ///< the keys of one point's features
   std::vector<std::uint16_t> votes_;      ///< A_k, one counter per model point
   std::vector<std::uint32_t> touched_;    ///< model points with a vote
+  std::vector<std::uint32_t> histogram_;  ///< scratch of upperOutliers
+  std::vector<std::size_t> outliers_;     ///< indices into values_ of the upper outliers
 };
 
 /// Voter::vote with the points of a group shared among threads: the same pairs in the same
