@@ -89,7 +89,7 @@ DetectionParams thesisPreset();
 DetectionParams defaultPreset();
 /// binpose's defaults, but each scene point votes once (local_votes), with partners one per
 /// 8 mm cube (partner_spacing), and keeps its 12 best model points at least 2.7 mm apart
-/// (candidate_spacing): 1.6-3.8x faster than the default on the bench bins.
+/// (candidate_spacing): 1.8-4.0x faster than the default on the bench bins.
 DetectionParams fastPreset();
 /// A preset by name: "thesis", "default" or "fast".
 DetectionParams presetByName(const std::string& name);
