@@ -2,6 +2,7 @@
 // scan points) and the cap's 4000-point model. Run: build/bench/binpose_bench_stages
 // (--benchmark_repetitions=5 --benchmark_report_aggregates_only=true for medians).
 #include <binpose/clique.hpp>
+#include <binpose/detector.hpp>
 #include <binpose/model.hpp>
 #include <binpose/model_database.hpp>
 #include <binpose/normals.hpp>
@@ -27,11 +28,8 @@ struct Fixture {
   Mesh mesh = builtinPart("cap");
   OrientedModel model = prepareModel(mesh, ModelParams{});
   ModelDatabase db = ModelDatabase::build(model, defaultQuantization(model.diameter));
-  DetectionParams params = [this] {
-    DetectionParams p = scaledToModel(defaultPreset(), model.diameter);
-    p.plane_min_area = boundingFaceArea(model.points);  // as the Detector resolves 0
-    return p;
-  }();
+  /// As the detector runs them (plane_min_area resolved from the model).
+  DetectionParams params = Detector(db, scaledToModel(defaultPreset(), model.diameter)).params();
   SimulatedScene bin = [this] {
     SimulationParams sp;
     sp.seed = 7;

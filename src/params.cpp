@@ -72,6 +72,10 @@ void positive(float v, const char* name, const char* unit) {
   if (!(v > 0) || !std::isfinite(v)) throw Error(fmt::format("{} must be a positive {}, got {}", name, unit, v));
 }
 
+void nonNegative(float v, const char* name, const char* unit) {
+  if (!(v >= 0) || !std::isfinite(v)) throw Error(fmt::format("{} must be >= 0 {}, got {}", name, unit, v));
+}
+
 }  // namespace
 
 DetectionParams thesisPreset() {
@@ -134,13 +138,11 @@ void validate(const DetectionParams& p) {
   positive(p.rho_sub, "rho_sub", "density in points/mm^2");
   positive(p.eta, "eta (grid spacing)", "length in mm");
   positive(p.vote_radius, "vote_radius", "length in mm");
-  if (!(p.plane_min_area >= 0) || !std::isfinite(p.plane_min_area))
-    throw Error(fmt::format("plane_min_area must be >= 0 mm^2 (0: from the model), got {}", p.plane_min_area));
+  nonNegative(p.plane_min_area, "plane_min_area", "mm^2 (0: from the model)");
   positive(p.plane_tolerance, "plane_tolerance", "distance in mm");
-  if (!(p.candidate_spacing >= 0) || !std::isfinite(p.candidate_spacing))
-    throw Error(fmt::format("candidate_spacing must be >= 0 mm, got {}", p.candidate_spacing));
-  if (!(p.partner_spacing >= 0) || !std::isfinite(p.partner_spacing)) throw Error(fmt::format("partner_spacing must be >= 0 mm, got {}", p.partner_spacing));
-  if (!(p.voter_spacing >= 0) || !std::isfinite(p.voter_spacing)) throw Error(fmt::format("voter_spacing must be >= 0 mm, got {}", p.voter_spacing));
+  nonNegative(p.candidate_spacing, "candidate_spacing", "mm");
+  nonNegative(p.partner_spacing, "partner_spacing", "mm");
+  nonNegative(p.voter_spacing, "voter_spacing", "mm");
   positive(p.e_gmax, "e_gmax", "length in mm");
   positive(p.sigma_dist, "sigma_dist", "length in mm");
   positive(p.icp_max_distance, "icp_max_distance", "length in mm");

@@ -10,8 +10,8 @@
 namespace binpose {
 namespace {
 
-bool onPlane(const Vec3& p, const Vec3& n, const Vec3& plane_n, float plane_d, float tolerance, float min_cos) {
-  return std::abs(plane_n.dot(p) - plane_d) <= tolerance && std::abs(plane_n.dot(n)) >= min_cos;
+bool onPlane(const Vec3& p, const Vec3& n, const Plane& plane, float tolerance, float min_cos) {
+  return plane.distance(p) <= tolerance && std::abs(plane.normal.dot(n)) >= min_cos;
 }
 
 /// Connected patches of `members` (links shorter than `link`), as lists of indices into points.
@@ -76,27 +76,24 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
     const std::size_t step = std::max<std::size_t>(1, left.size() / 1000);
     for (std::size_t k = 0; k < left.size(); k += step) probe.push_back(left[k]);
     std::size_t best_count = 0;
-    Vec3 best_n = Vec3::UnitZ();
-    float best_d = 0;
+    Plane best;
     for (int t = 0; t < params.trials; ++t) {
       const std::uint32_t s = left[rng.below(left.size())];
-      const Vec3& n = normals[s];
-      const float d = n.dot(points[s]);
+      const Plane hypothesis{normals[s], normals[s].dot(points[s])};
       std::size_t count = 0;
-      for (const auto i : probe) count += onPlane(points[i], normals[i], n, d, params.tolerance, min_cos);
+      for (const auto i : probe) count += onPlane(points[i], normals[i], hypothesis, params.tolerance, min_cos);
       if (count > best_count) {
         best_count = count;
-        best_n = n;
-        best_d = d;
+        best = hypothesis;
       }
     }
     inliers.clear();
     for (const auto i : left)
-      if (onPlane(points[i], normals[i], best_n, best_d, params.tolerance, min_cos)) inliers.push_back(i);
+      if (onPlane(points[i], normals[i], best, params.tolerance, min_cos)) inliers.push_back(i);
     if (inliers.size() < min_count) break;  // the largest plane left is too small: done
     for (const auto i : inliers) tried[i] = 1;  // small patches of it stay in the scene, and are not tried again
     std::size_t behind = 0;
-    for (const Vec3& p : points) behind += best_n.dot(p) - best_d < -3.0f * params.tolerance;
+    for (const Vec3& p : points) behind += best.normal.dot(p) - best.d < -3.0f * params.tolerance;
     if (static_cast<float>(behind) > params.max_behind * static_cast<float>(points.size())) continue;  // not background
     bool taken = false;
     for (const auto& patch : patches(points, inliers, params.link))
@@ -104,7 +101,7 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
         for (const auto i : patch) plane[i] = 1;
         taken = true;
       }
-    if (taken && removed) removed->push_back({best_n, best_d});
+    if (taken && removed) removed->push_back(best);
   }
   return plane;
 }

@@ -54,6 +54,11 @@ void upperOutliers(std::span<const std::uint32_t> values, std::vector<std::uint3
 
 namespace {
 
+/// Orders indices into `values` by more votes first, then by index.
+auto moreVotes(std::span<const std::uint32_t> values) {
+  return [values](std::size_t a, std::size_t b) { return values[a] != values[b] ? values[a] > values[b] : a < b; };
+}
+
 /// selectCandidates into `picked`, with the caller's scratch.
 void selectInto(std::span<const std::uint32_t> values, int keep, std::vector<std::uint32_t>& histogram,
                 std::vector<std::size_t>& picked) {
@@ -66,9 +71,7 @@ void selectInto(std::span<const std::uint32_t> values, int keep, std::vector<std
     return;
   }
   const auto cut = picked.begin() + std::min<std::ptrdiff_t>(keep, static_cast<std::ptrdiff_t>(picked.size()));
-  std::partial_sort(picked.begin(), cut, picked.end(), [&](std::size_t a, std::size_t b) {
-    return values[a] != values[b] ? values[a] > values[b] : a < b;
-  });
+  std::partial_sort(picked.begin(), cut, picked.end(), moreVotes(values));
   picked.erase(cut, picked.end());
 }
 
@@ -126,7 +129,7 @@ void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t
   const Points& model = db_.model().points;
   const std::size_t first = out.size();
   upperOutliers(values_, histogram_, outliers_);
-  const auto better = [&](std::size_t a, std::size_t b) { return values_[a] != values_[b] ? values_[a] > values_[b] : a < b; };
+  const auto better = moreVotes(values_);
   const std::size_t batch = 4 * static_cast<std::size_t>(keep_);
   for (std::size_t r = 0, sorted = 0; r < outliers_.size(); ++r) {
     if (r == sorted) {
