@@ -11,7 +11,12 @@
 #include <chrono>
 #include <memory>
 #include <optional>
+#include <tbb/blocked_range.h>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
 #include <tbb/parallel_invoke.h>
+#include <tbb/partitioner.h>
+#include <tbb/task_arena.h>
 
 namespace binpose {
 namespace {
@@ -31,6 +36,136 @@ PreparedScene withoutPlanes(PreparedScene scene, const DetectionParams& p, std::
   }
   return kept;
 }
+
+
+/// Most of a clique on scan points supporting a detection that scored well: the same object again.
+bool mostlyExplained(std::span<const std::uint32_t> clique_scan, const std::vector<char>& explained) {
+  std::size_t taken = 0;
+  for (const auto i : clique_scan) taken += explained[i];
+  return 2 * taken > clique_scan.size();
+}
+
+/// What one sub-group gave on the scene as it stood when it ran (5.2.3-5.2.5). Sub-groups run
+/// side by side in batches and are taken in their order afterwards (see Detector::detect).
+struct GroupOutcome {
+  std::vector<std::uint32_t> members;      ///< its points not removed when it ran
+  bool ran = false;                        ///< enough members to vote
+  std::vector<Correspondence> clique;      ///< the clique's pairs (empty: no pose)
+  std::vector<std::uint32_t> clique_scan;  ///< scan indices of the clique's scene points
+  bool screened_out = false;               ///< the pose failed the pre-screen
+  Hypothesis hypothesis;                   ///< refined and scored (when the clique gave a pose that passed)
+  double vote_ms = 0, match_ms = 0, refine_ms = 0;  ///< the thread's time in each stage
+};
+
+/// The buffers and the outcome of one place in a batch (the outcome is kept until it is taken).
+struct Slot {
+  explicit Slot(const ModelDatabase& db, const DetectionParams& p, std::uint32_t max_list)
+      : voter(db, p.candidates_per_point, max_list, p.candidate_spacing) {}
+  Voter voter;
+  std::vector<Correspondence> candidates;
+  Points clique_model, clique_scene;
+  GroupOutcome outcome;
+};
+
+/// Everything a sub-group reads (nothing it writes is shared).
+struct Matcher {
+  const ModelDatabase& db;
+  const DetectionParams& p;
+  const OrientedPoints& icp_model;
+  const PreparedScene& scene;
+  const PointCloud& scan;
+  const KdTree& scan_tree;
+  const SceneEvidence& evidence;
+  const NeighbourhoodVoter* local;  ///< the local votes (null: each sub-group votes, 4.3)
+
+  /// Votes (4.3-4.4), clique (4.5), pose (4.6), pre-screen, ICP and score of one sub-group,
+  /// with the scene points not yet removed. `parallel`: votes with it instead of the slot's
+  /// voter, on all cores (a sub-group run again on its own). The pose, ICP and score depend on the clique's
+  /// pairs alone: when `earlier` (a run of the same sub-group with more points) found the same
+  /// clique, its verdict is taken instead of verifying again.
+  void run(std::span<const std::uint32_t> group, const std::vector<char>& removed, const std::vector<char>& explained,
+           Slot& s, const GroupOutcome* earlier = nullptr, ParallelVoter* parallel = nullptr) const {
+    GroupOutcome& out = s.outcome;
+    out.members.clear();
+    out.clique.clear();
+    out.clique_scan.clear();
+    out.ran = out.screened_out = false;
+    out.hypothesis = {};
+    out.vote_ms = out.match_ms = out.refine_ms = 0;
+    for (const auto i : group)
+      if (!removed[i]) out.members.push_back(i);
+    if (out.members.size() < static_cast<std::size_t>(p.C_n)) return;
+    out.ran = true;
+    const auto t_vote = Clock::now();
+    s.candidates.clear();
+    if (local) {
+      for (const auto i : out.members)
+        for (const auto m : local->candidates(i)) s.candidates.push_back({i, m});
+    } else if (parallel != nullptr) {
+      parallel->vote(scene.points, scene.normals, out.members, s.candidates);  // the same pairs
+    } else {
+      s.voter.vote(scene.points, scene.normals, out.members, s.candidates);
+    }
+    const auto t_match = Clock::now();
+    out.vote_ms = msSince(t_vote);
+    if (!match(s)) {
+      out.match_ms = msSince(t_match);
+      return;
+    }
+    const auto t_refine = Clock::now();
+    out.match_ms = msSince(t_match);
+    if (p.verify && mostlyExplained(out.clique_scan, explained)) return;  // it stays so: not verified when taken
+    if (earlier != nullptr && earlier->clique == out.clique) {
+      out.screened_out = earlier->screened_out;
+      out.hypothesis = earlier->hypothesis;
+      return;
+    }
+    verify(s);
+    out.refine_ms = msSince(t_refine);
+  }
+
+ private:
+  /// Clique and closed-form pose; false when there is none. The pose goes into the outcome.
+  bool match(Slot& s) const {
+    const Points& model = db.model().points;
+    if (s.candidates.size() < static_cast<std::size_t>(p.C_n)) return false;
+    const CliqueResult clique = maximumClique(consistencyGraph(s.candidates, scene.points, model, p.e_gmax), p.clique_work_limit);
+    if (clique.vertices.size() < static_cast<std::size_t>(p.C_n)) return false;
+    s.clique_model.clear();
+    s.clique_scene.clear();
+    for (const int v : clique.vertices) {
+      s.clique_model.push_back(model[s.candidates[v].model]);
+      s.clique_scene.push_back(scene.points[s.candidates[v].scene]);
+    }
+    const PoseFit fit = solvePose(s.clique_model, s.clique_scene);
+    if (!fit.ok) return false;
+    for (const int v : clique.vertices) {
+      s.outcome.clique.push_back(s.candidates[v]);
+      s.outcome.clique_scan.push_back(scene.scan_index[s.candidates[v].scene]);
+    }
+    s.outcome.hypothesis.detection = Detection{fit.pose, 0.0f, static_cast<int>(clique.vertices.size()), fit.rms};
+    return true;
+  }
+
+  /// Pre-screen, ICP and score of the outcome's pose.
+  void verify(Slot& s) const {
+    Hypothesis& h = s.outcome.hypothesis;
+    Detection& det = h.detection;
+    if (p.verify && p.prescreen &&
+        evidence.evaluate(det.pose, icp_model.points, icp_model.normals, p.icp_max_distance, 0.0f).score() < p.min_score) {
+      s.outcome.screened_out = true;  // far from the scan even at the ICP gate: not worth refining
+      return;
+    }
+    if (p.refine) {
+      const IcpParams icp{p.icp_iterations, p.icp_max_distance, p.verify_tolerance, p.viewpoint};
+      det.pose = refinePose(det.pose, icp_model.points, icp_model.normals, scan.points, scan_tree, icp);
+    }
+    det.score = evidence.evaluate(det.pose, db.model().points, db.model().normals, p.verify_tolerance,
+                                  db.model().sample_radius, &h.support).score();
+    std::sort(h.support.begin(), h.support.end());
+    h.support.erase(std::unique(h.support.begin(), h.support.end()), h.support.end());
+  }
+};
 
 }  // namespace
 
@@ -89,7 +224,6 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   if (scan.empty()) return result;
   const DetectionParams& p = params_;
   const Points& model = db_.model().points;
-  const Points& model_normals = db_.model().normals;
 
   // The scan's kd-tree (one core) is built while the other core sub-samples.
   std::optional<KdTree> tree;
@@ -120,82 +254,35 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
       for (const auto i : voxelSubsample(scene.points, p.voter_spacing)) may_vote[i] = 1;
   }
   const double vote_setup_ms = msSince(t0) - result.timing.preprocess_ms;
-  double vote_ms = 0;  // inside the sub-group loop
+  double vote_ms = vote_setup_ms;  // the setup, then the local votes of each batch
 
+  const Matcher matcher{db_, p, icp_model_, scene, scan, scan_tree, evidence, local.get()};
   std::vector<char> removed(scene.points.size(), 0);
-  ParallelVoter voter(db_, p.candidates_per_point, max_list, p.candidate_spacing);
-  std::vector<std::uint32_t> members, voters;
-  std::vector<Correspondence> candidates;
-  Points clique_model, clique_scene;
   std::vector<Hypothesis> hypotheses;
   std::vector<char> explained(scan.size(), 0);  // scan points supporting a detection scoring >= 0.5
   int confident = 0;  // detections that removed their points
-  double refine_ms = 0;
-  const auto t_match = Clock::now();
-  for (const auto& group : groups) {
-    members.clear();
-    for (const auto i : group)
-      if (!removed[i]) members.push_back(i);
-    if (members.size() < static_cast<std::size_t>(p.C_n)) continue;
+  bool enough = false;
+
+  // The outcome of a sub-group, taken in the sub-groups' order: the same counts, hypotheses
+  // and removals as running them one after the other.
+  auto take = [&](GroupOutcome& o) {
+    if (!o.ran) return;
     ++result.subgroups_run;
-    candidates.clear();
-    const auto t_vote = Clock::now();
-    if (p.local_votes) {
-      voters.clear();
-      for (const auto i : members)
-        if (may_vote[i]) voters.push_back(i);
-      local->vote(voters);
-      for (const auto i : members)
-        for (const auto m : local->candidates(i)) candidates.push_back({i, m});
-    } else {
-      voter.vote(scene.points, scene.normals, members, candidates);  // 4.3-4.4
-    }
-    vote_ms += msSince(t_vote);
-    if (candidates.size() < static_cast<std::size_t>(p.C_n)) continue;
-    const CliqueResult clique =
-        maximumClique(consistencyGraph(candidates, scene.points, model, p.e_gmax), p.clique_work_limit);  // 4.5
-    if (clique.vertices.size() < static_cast<std::size_t>(p.C_n)) continue;
-    clique_model.clear();
-    clique_scene.clear();
-    for (const int v : clique.vertices) {
-      clique_model.push_back(model[candidates[v].model]);
-      clique_scene.push_back(scene.points[candidates[v].scene]);
-    }
-    const PoseFit fit = solvePose(clique_model, clique_scene);  // 4.6
-    if (!fit.ok) continue;
-    Detection det{fit.pose, 0.0f, static_cast<int>(clique.vertices.size()), fit.rms};
-    if (p.verify) {  // most of the clique on an object already scored well: the same object again
-      int taken = 0;
-      for (const int v : clique.vertices) taken += explained[scene.scan_index[candidates[v].scene]];
-      if (2 * taken > static_cast<int>(clique.vertices.size())) continue;
-    }
-
-    const auto t_refine = Clock::now();
+    if (o.clique_scan.empty()) return;
+    if (p.verify && mostlyExplained(o.clique_scan, explained)) return;
     ++result.hypotheses;
-    if (p.verify && p.prescreen &&
-        evidence.evaluate(det.pose, icp_model_.points, icp_model_.normals, p.icp_max_distance, 0.0f).score() < p.min_score) {
-      refine_ms += msSince(t_refine);
-      continue;  // far from the scan even at the ICP gate: not worth refining
-    }
+    if (o.screened_out) return;
     ++result.refined;
-    if (p.refine) {
-      const IcpParams icp{p.icp_iterations, p.icp_max_distance, p.verify_tolerance, p.viewpoint};
-      det.pose = refinePose(det.pose, icp_model_.points, icp_model_.normals, scan.points, scan_tree, icp);
-    }
-    Hypothesis h;
-    det.score = evidence.evaluate(det.pose, model, model_normals, p.verify_tolerance, db_.model().sample_radius, &h.support)
-                    .score();
-    refine_ms += msSince(t_refine);
-    if (p.verify && det.score < p.min_score) continue;
-
-    std::sort(h.support.begin(), h.support.end());
-    h.support.erase(std::unique(h.support.begin(), h.support.end()), h.support.end());
-    h.detection = det;
+    const Detection det = o.hypothesis.detection;
+    if (p.verify && det.score < p.min_score) return;
     if (det.score >= 0.5f)
-      for (const auto i : h.support) explained[i] = 1;
-    hypotheses.push_back(std::move(h));
-    if (det.score < p.removal_score) continue;  // not sure enough to take its points away
-    if (p.max_instances > 0 && ++confident >= p.max_instances) break;  // enough sure detections
+      for (const auto i : o.hypothesis.support) explained[i] = 1;
+    hypotheses.push_back(std::move(o.hypothesis));
+    if (det.score < p.removal_score) return;  // not sure enough to take its points away
+    if (p.max_instances > 0 && ++confident >= p.max_instances) {  // enough sure detections
+      enough = true;
+      return;
+    }
     // 5.2.6, eq. 39: remove the scene points within sigma_dist of the posed model.
     const Pose inverse = det.pose.inverse();
     const Vec3 centre = det.pose * model_centroid_;
@@ -206,10 +293,66 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
       float d2;
       if (model_tree_.nearest(inverse * scene.points[i], j, d2) && d2 <= p.sigma_dist * p.sigma_dist) removed[i] = 1;
     }
+  };
+
+  // Sub-groups run a batch at a time, side by side, on the scene as it stands at the batch's
+  // start; their outcomes are then taken in order. A sub-group some of whose points a detection
+  // of the batch has removed runs again, then and there, on the points left (its earlier
+  // verdict kept when the clique is the same): what is taken is what the sub-groups give one
+  // after the other, whatever the thread count.
+  const std::size_t threads = std::min<std::size_t>(static_cast<std::size_t>(std::max(1, tbb::this_task_arena::max_concurrency())),
+                                                    tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
+  const std::size_t batch = 4 * std::max<std::size_t>(1, threads);
+  std::vector<Slot> slots;
+  for (std::size_t k = 0; k < batch; ++k) slots.emplace_back(db_, p, max_list);
+  GroupOutcome earlier;
+  ParallelVoter parallel(db_, p.candidates_per_point, max_list, p.candidate_spacing);  // for those run again
+  std::vector<std::uint32_t> voters;
+  double work_ms = 0, group_vote_ms = 0, group_match_ms = 0, group_refine_ms = 0;  // see below
+  const auto t_match = Clock::now();
+  for (std::size_t next = 0; next < groups.size() && !enough; next += batch) {
+    const std::size_t end = std::min(groups.size(), next + batch);
+    if (local) {  // the batch's voters that have not voted yet vote first, all together
+      const auto t_vote = Clock::now();
+      voters.clear();
+      for (std::size_t g = next; g < end; ++g) {
+        std::size_t live = 0;
+        for (const auto i : groups[g]) live += !removed[i];
+        if (live < static_cast<std::size_t>(p.C_n)) continue;
+        for (const auto i : groups[g])
+          if (!removed[i] && may_vote[i]) voters.push_back(i);
+      }
+      local->vote(voters);
+      vote_ms += msSince(t_vote);
+    }
+    const auto t_work = Clock::now();
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(next, end, 1), [&](const tbb::blocked_range<std::size_t>& range) {
+      // Isolated: a thread waiting inside a nested loop (graph, ICP) takes up no other sub-group
+      // meanwhile, which would hold up its own.
+      for (std::size_t g = range.begin(); g < range.end(); ++g)
+        tbb::this_task_arena::isolate([&] { matcher.run(groups[g], removed, explained, slots[g - next]); });
+    }, tbb::simple_partitioner());
+    work_ms += msSince(t_work);
+    for (std::size_t g = next; g < end && !enough; ++g) {
+      Slot& slot = slots[g - next];
+      if (std::any_of(slot.outcome.members.begin(), slot.outcome.members.end(), [&](std::uint32_t i) { return removed[i] != 0; })) {
+        const auto t_again = Clock::now();
+        std::swap(earlier, slot.outcome);
+        matcher.run(groups[g], removed, explained, slot, &earlier, &parallel);
+        work_ms += msSince(t_again);
+      }
+      group_vote_ms += slot.outcome.vote_ms;
+      group_match_ms += slot.outcome.match_ms;
+      group_refine_ms += slot.outcome.refine_ms;
+      take(slot.outcome);
+    }
   }
-  result.timing.vote_ms = vote_setup_ms + vote_ms;
-  result.timing.refine_ms = refine_ms;
-  result.timing.match_ms = msSince(t_match) - refine_ms - vote_ms;
+  const double group_ms = group_vote_ms + group_match_ms + group_refine_ms;
+  const double to_wall = group_ms > 0 ? work_ms / group_ms : 0.0;
+  const double loop_ms = msSince(t_match);
+  result.timing.vote_ms = vote_ms + group_vote_ms * to_wall;
+  result.timing.refine_ms = group_refine_ms * to_wall;
+  result.timing.match_ms = loop_ms - (vote_ms - vote_setup_ms) - group_vote_ms * to_wall - result.timing.refine_ms;
   if (p.verify) {
     const auto t_suppress = Clock::now();
     result.detections = suppressDuplicates(std::move(hypotheses), scan.size());

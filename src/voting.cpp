@@ -98,12 +98,25 @@ void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t
     if (o != k && computeFeature(points[k], normals[k], points[o], normals[o], f)) keys_.push_back(keys.key(f));
   }
   std::sort(keys_.begin(), keys_.end());
+  lists_.clear();
   for (std::size_t a = 0, b = 0; a < keys_.size(); a = b) {
     while (b < keys_.size() && keys_[b] == keys_[a]) ++b;
     const auto ids = db_.lookup(keys_[a]);
-    if (ids.size() > max_list_) continue;  // a feature nearly every model point has: no information
-    const auto times = static_cast<std::uint16_t>(b - a);
-    for (const auto id : ids) votes_[id] = static_cast<std::uint16_t>(votes_[id] + times);  // no branch
+    if (ids.empty() || ids.size() > max_list_) continue;  // a feature nearly every model point has: no information
+    lists_.push_back({ids, static_cast<std::uint16_t>(b - a)});
+  }
+  // The lists lie far apart in the table: each one's first lines are fetched while the lists
+  // before it are counted (the table does not fit in the cache; the misses were half the time).
+  constexpr std::size_t kAhead = 4;
+  auto prefetch = [&](std::size_t l) {
+    const auto ids = lists_[l].ids;
+    for (std::size_t at = 0; at < std::min<std::size_t>(ids.size(), 128); at += 32) __builtin_prefetch(ids.data() + at);
+  };
+  for (std::size_t l = 0; l < std::min(kAhead, lists_.size()); ++l) prefetch(l);
+  for (std::size_t l = 0; l < lists_.size(); ++l) {
+    if (l + kAhead < lists_.size()) prefetch(l + kAhead);
+    const auto times = lists_[l].times;
+    for (const auto id : lists_[l].ids) votes_[id] = static_cast<std::uint16_t>(votes_[id] + times);  // no branch
   }
   // A_k over the model points with a vote, in model order (a branch-free scan of the small
   // accumulator costs less than tracking first touches), then eq. 10-12.

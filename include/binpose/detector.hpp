@@ -18,8 +18,11 @@ struct Detection {
   float rms = 0;           ///< residual of the clique's closed-form fit, mm
 };
 
+/// Wall time of each stage, ms. vote_ms: all voting (4.3-4.4); match_ms: clique, pose and
+/// duplicate suppression. Sub-groups run side by side: their wall time is shared among voting,
+/// matching and refinement in proportion to their threads' time in each.
 struct DetectionTiming {
-  double preprocess_ms = 0, vote_ms = 0, match_ms = 0, refine_ms = 0, total_ms = 0;  ///< vote_ms: all voting (4.3-4.4); match_ms: clique, pose and duplicate suppression
+  double preprocess_ms = 0, vote_ms = 0, match_ms = 0, refine_ms = 0, total_ms = 0;
 };
 
 struct DetectionResult {

@@ -65,6 +65,11 @@ class Voter {
   float spacing_;
   std::vector<std::uint32_t> values_;     ///< the accumulator's non-zero values
   std::vector<std::uint32_t> keys_;       ///< the keys of one point's features
+  struct List {
+    std::span<const ModelDatabase::PointId> ids;
+    std::uint16_t times;  ///< features of the point with this key
+  };
+  std::vector<List> lists_;  ///< the model point lists of those keys
   std::vector<std::uint16_t> votes_;      ///< A_k, one counter per model point
   std::vector<std::uint32_t> touched_;    ///< model points with a vote
   std::vector<std::uint32_t> histogram_;  ///< scratch of upperOutliers
