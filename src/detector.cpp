@@ -37,12 +37,25 @@ PreparedScene withoutPlanes(PreparedScene scene, const DetectionParams& p, std::
   return kept;
 }
 
-
 /// Most of a clique on scan points supporting a detection that scored well: the same object again.
-bool mostlyExplained(std::span<const std::uint32_t> clique_scan, const std::vector<char>& explained) {
+bool mostlyExplained(std::span<const Correspondence> clique, const PreparedScene& scene, const std::vector<char>& explained) {
   std::size_t taken = 0;
-  for (const auto i : clique_scan) taken += explained[i];
-  return 2 * taken > clique_scan.size();
+  for (const Correspondence& c : clique) taken += explained[scene.scan_index[c.scene]];
+  return 2 * taken > clique.size();
+}
+
+/// Appends the voters (may_vote) among the points of `group` not yet removed, when there are at
+/// least `min_size` such points (fewer: the sub-group will not run).
+void appendLiveVoters(std::span<const std::uint32_t> group, const std::vector<char>& removed, const std::vector<char>& may_vote,
+                      std::size_t min_size, std::vector<std::uint32_t>& voters) {
+  const std::size_t mark = voters.size();
+  std::size_t live = 0;
+  for (const auto i : group) {
+    if (removed[i]) continue;
+    ++live;
+    if (may_vote[i]) voters.push_back(i);
+  }
+  if (live < min_size) voters.resize(mark);
 }
 
 /// What one sub-group gave on the scene as it stood when it ran (5.2.3-5.2.5). Sub-groups run
@@ -51,7 +64,6 @@ struct GroupOutcome {
   std::vector<std::uint32_t> members;      ///< its points not removed when it ran
   bool ran = false;                        ///< enough members to vote
   std::vector<Correspondence> clique;      ///< the clique's pairs (empty: no pose)
-  std::vector<std::uint32_t> clique_scan;  ///< scan indices of the clique's scene points
   bool screened_out = false;               ///< the pose failed the pre-screen
   Hypothesis hypothesis;                   ///< refined and scored (when the clique gave a pose that passed)
   double vote_ms = 0, match_ms = 0, refine_ms = 0;  ///< the thread's time in each stage
@@ -79,16 +91,15 @@ struct Matcher {
   const NeighbourhoodVoter* local;  ///< the local votes (null: each sub-group votes, 4.3)
 
   /// Votes (4.3-4.4), clique (4.5), pose (4.6), pre-screen, ICP and score of one sub-group,
-  /// with the scene points not yet removed. `parallel`: votes with it instead of the slot's
-  /// voter, on all cores (a sub-group run again on its own). The pose, ICP and score depend on the clique's
+  /// with the scene points not yet removed. The pose, ICP and score depend on the clique's
   /// pairs alone: when `earlier` (a run of the same sub-group with more points) found the same
-  /// clique, its verdict is taken instead of verifying again.
+  /// clique, its verdict is taken instead of verifying again. `parallel`: votes with it instead
+  /// of the slot's voter, on all cores (a sub-group run again on its own).
   void run(std::span<const std::uint32_t> group, const std::vector<char>& removed, const std::vector<char>& explained,
            Slot& s, const GroupOutcome* earlier = nullptr, ParallelVoter* parallel = nullptr) const {
     GroupOutcome& out = s.outcome;
     out.members.clear();
     out.clique.clear();
-    out.clique_scan.clear();
     out.ran = out.screened_out = false;
     out.hypothesis = {};
     out.vote_ms = out.match_ms = out.refine_ms = 0;
@@ -114,7 +125,7 @@ struct Matcher {
     }
     const auto t_refine = Clock::now();
     out.match_ms = msSince(t_match);
-    if (p.verify && mostlyExplained(out.clique_scan, explained)) return;  // it stays so: not verified when taken
+    if (p.verify && mostlyExplained(out.clique, scene, explained)) return;  // it stays so: not verified when taken
     if (earlier != nullptr && earlier->clique == out.clique) {
       out.screened_out = earlier->screened_out;
       out.hypothesis = earlier->hypothesis;
@@ -139,10 +150,7 @@ struct Matcher {
     }
     const PoseFit fit = solvePose(s.clique_model, s.clique_scene);
     if (!fit.ok) return false;
-    for (const int v : clique.vertices) {
-      s.outcome.clique.push_back(s.candidates[v]);
-      s.outcome.clique_scan.push_back(scene.scan_index[s.candidates[v].scene]);
-    }
+    for (const int v : clique.vertices) s.outcome.clique.push_back(s.candidates[v]);
     s.outcome.hypothesis.detection = Detection{fit.pose, 0.0f, static_cast<int>(clique.vertices.size()), fit.rms};
     return true;
   }
@@ -268,8 +276,8 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   auto take = [&](GroupOutcome& o) {
     if (!o.ran) return;
     ++result.subgroups_run;
-    if (o.clique_scan.empty()) return;
-    if (p.verify && mostlyExplained(o.clique_scan, explained)) return;
+    if (o.clique.empty()) return;
+    if (p.verify && mostlyExplained(o.clique, scene, explained)) return;
     ++result.hypotheses;
     if (o.screened_out) return;
     ++result.refined;
@@ -315,13 +323,8 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
     if (local) {  // the batch's voters that have not voted yet vote first, all together
       const auto t_vote = Clock::now();
       voters.clear();
-      for (std::size_t g = next; g < end; ++g) {
-        std::size_t live = 0;
-        for (const auto i : groups[g]) live += !removed[i];
-        if (live < static_cast<std::size_t>(p.C_n)) continue;
-        for (const auto i : groups[g])
-          if (!removed[i] && may_vote[i]) voters.push_back(i);
-      }
+      for (std::size_t g = next; g < end; ++g)
+        appendLiveVoters(groups[g], removed, may_vote, static_cast<std::size_t>(p.C_n), voters);
       local->vote(voters);
       vote_ms += msSince(t_vote);
     }
