@@ -86,7 +86,7 @@ struct Matcher {
   const OrientedPoints& icp_model;
   const PreparedScene& scene;
   const PointCloud& scan;
-  const KdTree& scan_tree;
+  const PointGrid& scan_grid;
   const SceneEvidence& evidence;
   const NeighbourhoodVoter* local;  ///< the local votes (null: each sub-group votes, 4.3)
 
@@ -166,7 +166,7 @@ struct Matcher {
     }
     if (p.refine) {
       const IcpParams icp{p.icp_iterations, p.icp_max_distance, p.verify_tolerance, p.viewpoint};
-      det.pose = refinePose(det.pose, icp_model.points, icp_model.normals, scan.points, scan_tree, icp);
+      det.pose = refinePose(det.pose, icp_model.points, icp_model.normals, scan.points, scan_grid, icp);
     }
     det.score = evidence.evaluate(det.pose, db.model().points, db.model().normals, p.verify_tolerance,
                                   db.model().sample_radius, &h.support).score();
@@ -233,17 +233,17 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   const DetectionParams& p = params_;
   const Points& model = db_.model().points;
 
-  // The scan's kd-tree (one core) is built while the other core sub-samples.
-  std::optional<KdTree> tree;
+  // The scan's grid (one core) is built while the other core sub-samples.
+  std::optional<PointGrid> grid;
   std::vector<std::uint32_t> chosen;
-  tbb::parallel_invoke([&] { tree.emplace(scan.points); }, [&] { chosen = subsampleScene(scan.points, p); });
-  const KdTree& scan_tree = *tree;
-  PreparedScene scene = prepareScene(scan.points, scan_tree, chosen, p);
+  tbb::parallel_invoke([&] { grid.emplace(scan.points); }, [&] { chosen = subsampleScene(scan.points, p); });
+  const PointGrid& scan_grid = *grid;
+  PreparedScene scene = prepareScene(scan.points, scan_grid, chosen, p);
   result.sampled_points = scene.points.size();
   std::vector<Plane> planes;  // the bin's
   if (p.remove_planes) scene = withoutPlanes(std::move(scene), p, planes);
   result.plane_points = result.sampled_points - scene.points.size();
-  const SceneEvidence evidence(scan.points, scan_tree, p.viewpoint, planes, std::min(p.verify_tolerance, p.plane_tolerance));
+  const SceneEvidence evidence(scan.points, scan_grid, p.viewpoint, planes, std::min(p.verify_tolerance, p.plane_tolerance));
   const auto groups = makeSubGroups(scene.points, p.eta, p.r, static_cast<std::size_t>(p.C_n));
   result.subgroups = groups.size();
   result.timing.preprocess_ms = msSince(t0);
@@ -264,7 +264,7 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   const double vote_setup_ms = msSince(t0) - result.timing.preprocess_ms;
   double vote_ms = vote_setup_ms;  // the setup, then the local votes of each batch
 
-  const Matcher matcher{db_, p, icp_model_, scene, scan, scan_tree, evidence, local.get()};
+  const Matcher matcher{db_, p, icp_model_, scene, scan, scan_grid, evidence, local.get()};
   std::vector<char> removed(scene.points.size(), 0);
   std::vector<Hypothesis> hypotheses;
   std::vector<char> explained(scan.size(), 0);  // scan points supporting a detection scoring >= 0.5

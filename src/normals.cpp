@@ -1,9 +1,10 @@
 // Plane-fit normals (thesis 5.2.2).
 #include <binpose/normals.hpp>
 
-#include <binpose/kdtree.hpp>
 
 #include <Eigen/Eigenvalues>
+
+#include <algorithm>
 #include <fmt/format.h>
 #include <tbb/parallel_for.h>
 
@@ -31,10 +32,10 @@ bool fitPlaneNormal(const Points& points, Vec3& normal) {
 
 Points estimateNormals(const Points& cloud, const Points& queries, int k, const Vec3& viewpoint) {
   if (cloud.size() < 3) return Points(queries.size(), Vec3::Zero());
-  return estimateNormals(KdTree(cloud), cloud, queries, k, viewpoint);
+  return estimateNormals(PointGrid(cloud), cloud, queries, k, viewpoint);
 }
 
-Points estimateNormals(const KdTree& tree, const Points& cloud, const Points& queries, int k, const Vec3& viewpoint) {
+Points estimateNormals(const PointGrid& grid, const Points& cloud, const Points& queries, int k, const Vec3& viewpoint) {
   if (k < 3) throw Error(fmt::format("normal estimation needs k >= 3 neighbours, got {}", k));
   Points normals(queries.size(), Vec3::Zero());
   if (cloud.size() < 3) return normals;
@@ -44,7 +45,8 @@ Points estimateNormals(const KdTree& tree, const Points& cloud, const Points& qu
     Points neighbours;
     for (std::size_t i = range.begin(); i != range.end(); ++i) {
       if (!queries[i].allFinite()) continue;
-      const std::size_t found = tree.knn(queries[i], static_cast<std::size_t>(k), idx.data(), dist.data());
+      const std::size_t found = grid.knn(queries[i], static_cast<std::size_t>(k), idx.data(), dist.data());
+      std::sort(idx.begin(), idx.begin() + static_cast<long>(found));  // the fit's sums in one order, whatever the search's
       neighbours.clear();
       for (std::size_t j = 0; j < found; ++j) neighbours.push_back(cloud[idx[j]]);
       Vec3 n;

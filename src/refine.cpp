@@ -66,7 +66,7 @@ OrientedPoints evenShare(const Points& points, const Points& normals, std::size_
 }
 
 Pose refinePose(const Pose& pose, const Points& model_points, const Points& model_normals, const Points& scan,
-                const KdTree& scan_tree, const IcpParams& params) {
+                const PointGrid& scan_grid, const IcpParams& params) {
   Vec3 model_centre = Vec3::Zero();
   for (const Vec3& m : model_points) model_centre += m;
   model_centre /= static_cast<float>(std::max<std::size_t>(1, model_points.size()));
@@ -90,7 +90,7 @@ Pose refinePose(const Pose& pose, const Points& model_points, const Points& mode
         if (!facesSensor(p, n, params.viewpoint)) continue;
         std::uint32_t j;
         float d2;
-        if (!scan_tree.nearest(p, j, d2) || d2 > gate * gate) continue;
+        if (!scan_grid.nearest(p, gate, j, d2)) continue;
         // residual n.(q - p) against the step (omega, t): n.(omega x (p - c) + t)
         Eigen::Matrix<double, 6, 1> J;
         J << (p - c).cross(n).cast<double>(), n.cast<double>();
@@ -124,9 +124,9 @@ Pose refinePose(const Pose& pose, const Points& model_points, const Points& mode
   return current;
 }
 
-SceneEvidence::SceneEvidence(const Points& scan, const KdTree& tree, const Vec3& viewpoint, std::vector<Plane> background,
+SceneEvidence::SceneEvidence(const Points& scan, const PointGrid& grid, const Vec3& viewpoint, std::vector<Plane> background,
                              float background_tolerance)
-    : tree_(tree), viewpoint_(viewpoint), background_(std::move(background)),
+    : grid_(grid), viewpoint_(viewpoint), background_(std::move(background)),
       background_tolerance_(background_tolerance), to_view_(Eigen::Matrix3f::Identity()) {
   if (scan.empty()) return;
   Vec3 axis = Vec3::Zero();
@@ -141,7 +141,7 @@ SceneEvidence::SceneEvidence(const Points& scan, const KdTree& tree, const Vec3&
   for (std::size_t i = 0; i < scan.size(); i += step) {
     std::uint32_t idx[2];
     float d2[2];
-    if (tree.knn(scan[i], 2, idx, d2) == 2) spacing.push_back(std::sqrt(d2[1]));
+    if (grid.knn(scan[i], 2, idx, d2) == 2) spacing.push_back(std::sqrt(d2[1]));
     depth.push_back((to_view_ * (scan[i] - viewpoint)).z());
   }
   auto median = [](std::vector<float>& v) {
@@ -219,7 +219,7 @@ Evidence SceneEvidence::evaluate(const Pose& pose, const Points& model_points, c
         continue;
       }
       float d2;
-      if (tree_.nearest(f.p, nearest[i], d2) && d2 <= tolerance * tolerance) {
+      if (grid_.nearest(f.p, tolerance, nearest[i], d2)) {
         const bool on_bin = std::any_of(background_.begin(), background_.end(),
                                         [&](const Plane& b) { return b.distance(f.p) <= background_tolerance_; });
         if (!on_bin) verdict[i] = kSupported;

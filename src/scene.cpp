@@ -23,22 +23,66 @@ std::uint64_t cellKey(const Vec3& p, float size, int dims) {
 
 }  // namespace
 
+namespace {
+
+/// The point indices grouped by voxel (cubes of side `voxel` at floor(p / voxel)), each voxel's
+/// in increasing order; `first` marks where each voxel's run starts (and ends the last).
+void groupByVoxel(const Points& points, float voxel, std::vector<std::uint32_t>& order, std::vector<std::uint32_t>& first) {
+  const std::size_t n = points.size();
+  std::vector<Eigen::Vector3i> cell(n);
+  Eigen::Vector3i lo = Eigen::Vector3i::Constant(INT32_MAX), hi = Eigen::Vector3i::Constant(INT32_MIN);
+  bool small = true;  // coordinates within +-2^20 voxels: the keys of cellKey, and a dense index
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3 c = (points[i] / voxel).array().floor();
+    small &= c.cwiseAbs().maxCoeff() < float(1 << 20);
+    cell[i] = c.cast<int>();
+    lo = lo.cwiseMin(cell[i]);
+    hi = hi.cwiseMax(cell[i]);
+  }
+  const Eigen::Vector3d size = (hi - lo).cast<double>().array() + 1.0;
+  order.resize(n);
+  first.clear();
+  if (small && size.prod() <= std::max(4.0 * double(n), double(1 << 20))) {
+    // A counting sort over the box's voxels: O(n), each voxel's points in index order.
+    const auto nx = static_cast<std::size_t>(size.x()), ny = static_cast<std::size_t>(size.y());
+    auto index = [&](const Eigen::Vector3i& c) {
+      return (std::size_t(c.z() - lo.z()) * ny + std::size_t(c.y() - lo.y())) * nx + std::size_t(c.x() - lo.x());
+    };
+    std::vector<std::uint32_t> offsets(static_cast<std::size_t>(size.prod()) + 1, 0);
+    for (std::size_t i = 0; i < n; ++i) ++offsets[index(cell[i]) + 1];
+    for (std::size_t v = 0; v + 1 < offsets.size(); ++v) {
+      if (offsets[v + 1] > 0) first.push_back(offsets[v]);
+      offsets[v + 1] += offsets[v];
+    }
+    for (std::size_t i = 0; i < n; ++i) order[offsets[index(cell[i])]++] = static_cast<std::uint32_t>(i);
+  } else {  // a sparse box (a stray point far away): sorted keys
+    std::vector<std::pair<std::uint64_t, std::uint32_t>> keyed(n);
+    for (std::size_t i = 0; i < n; ++i) keyed[i] = {cellKey(points[i], voxel, 3), static_cast<std::uint32_t>(i)};
+    std::sort(keyed.begin(), keyed.end());
+    for (std::size_t i = 0; i < n; ++i) {
+      if (i == 0 || keyed[i].first != keyed[i - 1].first) first.push_back(static_cast<std::uint32_t>(i));
+      order[i] = keyed[i].second;
+    }
+  }
+  first.push_back(static_cast<std::uint32_t>(n));
+}
+
+}  // namespace
+
 std::vector<std::uint32_t> voxelSubsample(const Points& points, float voxel) {
   if (!(voxel > 0)) throw Error(fmt::format("voxel size must be positive, got {}", voxel));
-  std::vector<std::pair<std::uint64_t, std::uint32_t>> keyed(points.size());
-  for (std::size_t i = 0; i < points.size(); ++i) keyed[i] = {cellKey(points[i], voxel, 3), static_cast<std::uint32_t>(i)};
-  std::sort(keyed.begin(), keyed.end());
-  std::vector<std::uint32_t> kept;
-  for (std::size_t a = 0; a < keyed.size();) {
-    std::size_t b = a;
+  std::vector<std::uint32_t> order, first;
+  groupByVoxel(points, voxel, order, first);
+  std::vector<std::uint32_t> kept;  // per voxel, the point nearest its points' centroid
+  for (std::size_t v = 0; v + 1 < first.size(); ++v) {
+    const std::uint32_t a = first[v], b = first[v + 1];
     Vec3 centroid = Vec3::Zero();
-    for (; b < keyed.size() && keyed[b].first == keyed[a].first; ++b) centroid += points[keyed[b].second];
+    for (std::uint32_t i = a; i < b; ++i) centroid += points[order[i]];
     centroid /= static_cast<float>(b - a);
-    std::uint32_t best = keyed[a].second;
-    for (std::size_t i = a; i < b; ++i)
-      if ((points[keyed[i].second] - centroid).squaredNorm() < (points[best] - centroid).squaredNorm()) best = keyed[i].second;
+    std::uint32_t best = order[a];
+    for (std::uint32_t i = a; i < b; ++i)
+      if ((points[order[i]] - centroid).squaredNorm() < (points[best] - centroid).squaredNorm()) best = order[i];
     kept.push_back(best);
-    a = b;
   }
   std::sort(kept.begin(), kept.end());
   return kept;
@@ -60,12 +104,12 @@ std::vector<std::uint32_t> subsampleScene(const Points& scan, const DetectionPar
   return chosen;
 }
 
-PreparedScene prepareScene(const Points& scan, const KdTree& scan_tree, std::span<const std::uint32_t> chosen,
+PreparedScene prepareScene(const Points& scan, const PointGrid& scan_grid, std::span<const std::uint32_t> chosen,
                            const DetectionParams& params) {
   PreparedScene scene;
   Points sampled;
   for (const auto i : chosen) sampled.push_back(scan[i]);
-  const Points normals = estimateNormals(scan_tree, scan, sampled, params.k_normals, params.viewpoint);
+  const Points normals = estimateNormals(scan_grid, scan, sampled, params.k_normals, params.viewpoint);
   for (std::size_t i = 0; i < sampled.size(); ++i) {
     if (normals[i].squaredNorm() < 0.5f) continue;  // degenerate neighbourhood: skipped
     scene.points.push_back(sampled[i]);
@@ -75,8 +119,8 @@ PreparedScene prepareScene(const Points& scan, const KdTree& scan_tree, std::spa
   return scene;
 }
 
-PreparedScene prepareScene(const Points& scan, const KdTree& scan_tree, const DetectionParams& params) {
-  return prepareScene(scan, scan_tree, subsampleScene(scan, params), params);
+PreparedScene prepareScene(const Points& scan, const PointGrid& scan_grid, const DetectionParams& params) {
+  return prepareScene(scan, scan_grid, subsampleScene(scan, params), params);
 }
 
 std::vector<std::vector<std::uint32_t>> makeSubGroups(const Points& points, float eta, float r, std::size_t min_size) {

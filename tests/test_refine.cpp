@@ -25,8 +25,8 @@ Case view(const Mesh& mesh, const Vec3& tilt_axis) {
 }
 
 Pose refine(const Case& c, const Pose& start) {
-  const KdTree tree(c.scan.points);
-  return refinePose(start, c.model.points, c.model.normals, c.scan.points, tree, IcpParams{});
+  const PointGrid grid(c.scan.points);
+  return refinePose(start, c.model.points, c.model.normals, c.scan.points, grid, IcpParams{});
 }
 
 /// `pose` moved by `t` (mm) and turned by `angle` (rad) about `axis` through the part's origin.
@@ -72,11 +72,11 @@ TEST(Evidence, TheBinsPlanesDoNotSupportAPart) {
   PointCloud floor;  // the plane z = 500 mm, seen from the origin
   for (float x = -100; x <= 100; x += 0.5f)
     for (float y = -100; y <= 100; y += 0.5f) floor.points.emplace_back(x, y, 500.0f);
-  const KdTree tree(floor.points);
+  const PointGrid grid(floor.points);
   Pose flush = Pose::Identity();  // the box's -z face (facing the sensor) in the floor
   flush.translation() = Vec3(10, -5, 510);
   const auto score = [&](std::vector<Plane> background) {
-    const SceneEvidence evidence(floor.points, tree, Vec3::Zero(), std::move(background), 1.0f);
+    const SceneEvidence evidence(floor.points, grid, Vec3::Zero(), std::move(background), 1.0f);
     return evidence.evaluate(flush, box.points, box.normals, 1.0f, box.sample_radius).score();
   };
   EXPECT_GT(score({}), 0.8f);

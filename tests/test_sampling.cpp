@@ -1,11 +1,15 @@
-// Poisson-disk sampling (thesis 6.2).
+// Poisson-disk sampling (thesis 6.2) and the scene's voxel sub-sampling (5.2.1).
 #include <binpose/geometry.hpp>
 #include <binpose/sampling.hpp>
+#include <binpose/scene.hpp>
 #include <binpose/shapes.hpp>
 
 #include "test_util.hpp"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <map>
 
 using namespace binpose;
 
@@ -99,4 +103,48 @@ TEST(Sampling, RejectsBadArguments) {
   flat.vertices = {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}};
   flat.faces = {{0, 1, 2}};
   EXPECT_THROW(sampleSurfaceUniform(flat, 10, 1), Error);
+}
+
+namespace {
+
+/// voxelSubsample by its definition: per cube floor(p / voxel), the point nearest the centroid
+/// of the cube's points (the lowest index among equals), ascending.
+std::vector<std::uint32_t> voxelReference(const Points& points, float voxel) {
+  std::map<std::array<long, 3>, std::vector<std::uint32_t>> cubes;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Vec3 c = (points[i] / voxel).array().floor();
+    cubes[{long(c.x()), long(c.y()), long(c.z())}].push_back(static_cast<std::uint32_t>(i));
+  }
+  std::vector<std::uint32_t> kept;
+  for (const auto& [key, ids] : cubes) {
+    Vec3 centroid = Vec3::Zero();
+    for (const auto i : ids) centroid += points[i];
+    centroid /= float(ids.size());
+    std::uint32_t best = ids[0];
+    for (const auto i : ids)
+      if ((points[i] - centroid).squaredNorm() < (points[best] - centroid).squaredNorm()) best = i;
+    kept.push_back(best);
+  }
+  std::sort(kept.begin(), kept.end());
+  return kept;
+}
+
+}  // namespace
+
+TEST(VoxelSubsample, OnePointPerCubeNearestItsCentroid) {
+  Rng rng(4);
+  Points points;
+  for (int i = 0; i < 20000; ++i)  // a noisy bowl, negative coordinates included
+    points.emplace_back(float(200 * rng.uniform() - 100), float(150 * rng.uniform() - 75), 0.0f);
+  for (Vec3& p : points) p.z() = 400.0f + 0.01f * p.head<2>().squaredNorm() + float(rng.uniform());
+  for (const float voxel : {2.0f, 4.0f, 7.5f}) {
+    const auto kept = voxelSubsample(points, voxel);
+    EXPECT_EQ(kept, voxelReference(points, voxel)) << "voxel " << voxel;
+    // A stray point far away (the sparse path, by sorted keys) changes nothing else.
+    Points with_stray = points;
+    with_stray.emplace_back(3e5f, -3e5f, 3e5f);
+    auto expected = kept;
+    expected.push_back(static_cast<std::uint32_t>(points.size()));
+    EXPECT_EQ(voxelSubsample(with_stray, voxel), expected) << "voxel " << voxel;
+  }
 }

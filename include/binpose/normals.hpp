@@ -1,6 +1,6 @@
 #pragma once
 // Surface normals by least-squares plane fits (thesis 5.2.2, eq. 30-38).
-#include <binpose/kdtree.hpp>
+#include <binpose/point_grid.hpp>
 #include <binpose/types.hpp>
 
 namespace binpose {
@@ -14,7 +14,7 @@ bool fitPlaneNormal(const Points& points, Vec3& normal);
 /// when it is a cloud point; thesis: k = 6 on the full scan), each oriented towards `viewpoint`.
 /// A query whose neighbourhood is degenerate gets a zero normal (missing), never NaN. Parallel.
 Points estimateNormals(const Points& cloud, const Points& queries, int k, const Vec3& viewpoint);
-/// The same with a kd-tree of `cloud` already built.
-Points estimateNormals(const KdTree& tree, const Points& cloud, const Points& queries, int k, const Vec3& viewpoint);
+/// The same with a grid of `cloud` already built.
+Points estimateNormals(const PointGrid& grid, const Points& cloud, const Points& queries, int k, const Vec3& viewpoint);
 
 }  // namespace binpose

@@ -1,6 +1,6 @@
 #pragma once
 // Beyond the thesis: pose refinement by ICP and a verification score, both against the full scan.
-#include <binpose/kdtree.hpp>
+#include <binpose/point_grid.hpp>
 #include <binpose/planes.hpp>
 #include <binpose/pose.hpp>
 
@@ -22,7 +22,7 @@ struct OrientedPoints {
 };
 
 /// About `count` of the model's points with their normals (all when 0): every k-th, an even
-/// share, as the Poisson-disk order is spatially random. ICP's cost is one scan-tree query per
+/// share, as the Poisson-disk order is spatially random. ICP's cost is one scan-grid query per
 /// model point and iteration; a thousand points fix a pose as well as four thousand.
 OrientedPoints evenShare(const Points& points, const Points& normals, std::size_t count);
 
@@ -30,7 +30,7 @@ OrientedPoints evenShare(const Points& points, const Points& normals, std::size_
 /// with the model's normals as the planes; each step a linearised 6-dof least-squares solve.
 /// Returns the refined pose (the input pose when too few points pair up).
 Pose refinePose(const Pose& pose, const Points& model_points, const Points& model_normals, const Points& scan,
-                const KdTree& scan_tree, const IcpParams& params);
+                const PointGrid& scan_grid, const IcpParams& params);
 
 /// What the scan says about a posed model's sensor-facing points.
 struct Evidence {
@@ -43,7 +43,7 @@ struct Evidence {
   }
 };
 
-/// The scan as seen from its viewpoint: a kd-tree for support, and a range image (nearest range
+/// The scan as seen from its viewpoint: a grid for support, and a range image (nearest range
 /// per direction, built from the points themselves, so unorganized scans work too) for
 /// free-space contradictions.
 class SceneEvidence {
@@ -51,7 +51,7 @@ class SceneEvidence {
   /// `background`: the bin's planes (planes.hpp). A model point within `background_tolerance`
   /// of one is not supported by the scan there: the bin is seen, not the part. Without this an
   /// L-shaped part fits the corner of floor and wall and scores as if it were there.
-  SceneEvidence(const Points& scan, const KdTree& tree, const Vec3& viewpoint, std::vector<Plane> background = {},
+  SceneEvidence(const Points& scan, const PointGrid& grid, const Vec3& viewpoint, std::vector<Plane> background = {},
                 float background_tolerance = 0);
   /// `model_spacing`: the model's sample spacing, mm, for its self-occlusion test (0: none).
   /// The scan points that support the pose are appended to `support` when it is given.
@@ -63,7 +63,7 @@ class SceneEvidence {
   /// Range-image cell of a point, or -1 outside the image.
   [[nodiscard]] long cell(const Vec3& p, float& range) const;
 
-  const KdTree& tree_;
+  const PointGrid& grid_;
   Vec3 viewpoint_;
   std::vector<Plane> background_;
   float background_tolerance_ = 0;

@@ -1,6 +1,6 @@
 #pragma once
 // Scene preparation (thesis 5.2.1-5.2.2): sub-sampling and normals.
-#include <binpose/kdtree.hpp>
+#include <binpose/point_grid.hpp>
 #include <binpose/params.hpp>
 
 #include <cstdint>
@@ -25,16 +25,16 @@ std::vector<std::uint32_t> voxelSubsample(const Points& points, float voxel);
 std::vector<std::uint32_t> subsampleScene(const Points& scan, const DetectionParams& params);
 
 /// The chosen scan points (subsampleScene) with normals by plane fits over k_normals
-/// neighbours in the full scan (5.2.2) through `scan_tree`, facing the viewpoint; points whose
+/// neighbours in the full scan (5.2.2) through `scan_grid`, facing the viewpoint; points whose
 /// neighbourhood is degenerate are dropped.
-PreparedScene prepareScene(const Points& scan, const KdTree& scan_tree, std::span<const std::uint32_t> chosen,
+PreparedScene prepareScene(const Points& scan, const PointGrid& scan_grid, std::span<const std::uint32_t> chosen,
                            const DetectionParams& params);
 
 /// Sub-samples the scan to rho_sub (5.2.1): by voxels of side 1/sqrt(rho_sub), or the thesis's
 /// random selection of as many points (seeded). Normals by plane fits over k_normals neighbours
-/// in the full scan (5.2.2) through `scan_tree`, facing the viewpoint; points whose
+/// in the full scan (5.2.2) through `scan_grid`, facing the viewpoint; points whose
 /// neighbourhood is degenerate are dropped.
-PreparedScene prepareScene(const Points& scan, const KdTree& scan_tree, const DetectionParams& params);
+PreparedScene prepareScene(const Points& scan, const PointGrid& scan_grid, const DetectionParams& params);
 
 /// Redundant sub-groups (5.2.3-5.2.4): a grid of spacing eta over the x-y bounds of the points,
 /// and at each node the points within r of it in x-y. Groups smaller than `min_size` are left

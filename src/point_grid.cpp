@@ -1,0 +1,178 @@
+// Uniform grid for short-range neighbour queries (normals, ICP, verification).
+#include <binpose/point_grid.hpp>
+
+#include <algorithm>
+#include <cmath>
+
+namespace binpose {
+namespace {
+
+/// The k best (squared distance, index) pairs seen, best first: an insertion into a short array
+/// (k is 6 for normals, 2 for a spacing).
+struct Best {
+  std::size_t k, count = 0;
+  std::uint32_t* idx;
+  float* d2;
+  void offer(float d, std::uint32_t i) {
+    if (count == k && (d > d2[k - 1] || (d == d2[k - 1] && i > idx[k - 1]))) return;
+    std::size_t at = count < k ? count++ : k - 1;
+    while (at > 0 && (d < d2[at - 1] || (d == d2[at - 1] && i < idx[at - 1]))) {
+      d2[at] = d2[at - 1];
+      idx[at] = idx[at - 1];
+      --at;
+    }
+    d2[at] = d;
+    idx[at] = i;
+  }
+};
+
+int clampCell(float v, int n) { return static_cast<int>(std::clamp(std::floor(v), 0.0f, static_cast<float>(n - 1))); }
+
+/// Shrinks the box [lo, hi] to the bulk of the points: per axis, the 1st to 99th percentile of
+/// a sample, widened by a tenth of that span. A stray point far away would otherwise stretch
+/// every cell. Points outside the box go into its border cells; since clamping is monotone,
+/// every point within r of a query still lies in the cells the query's box clamps to.
+void robustBox(const Points& points, std::size_t finite, Vec3& lo, Vec3& hi) {
+  if (finite < 1000) return;
+  const std::size_t step = std::max<std::size_t>(1, points.size() / 4096);
+  for (int axis = 0; axis < 3; ++axis) {
+    std::vector<float> v;
+    for (std::size_t i = 0; i < points.size(); i += step)
+      if (points[i].allFinite()) v.push_back(points[i][axis]);
+    if (v.size() < 100) return;
+    const auto at = [&](double share) {
+      const auto k = static_cast<long>(share * double(v.size() - 1));
+      std::nth_element(v.begin(), v.begin() + k, v.end());
+      return v[static_cast<std::size_t>(k)];
+    };
+    const float a = at(0.01), b = at(0.99), margin = 0.1f * (b - a);
+    lo[axis] = std::max(lo[axis], a - margin);
+    hi[axis] = std::min(hi[axis], b + margin);
+  }
+}
+
+}  // namespace
+
+PointGrid::PointGrid(const Points& points, float cell) {
+  if (cell > 0 && std::isfinite(cell)) {
+    build(points, cell);
+    return;
+  }
+  // A first grid on the box's scale, then cells of twice the median spacing of a sample.
+  build(points, 0.0f);
+  if (ids_.size() < 2) return;
+  std::vector<float> spacing;
+  const std::size_t step = std::max<std::size_t>(1, ids_.size() / 500);
+  for (std::size_t s = 0; s < ids_.size(); s += step) {
+    std::uint32_t idx[2];
+    float d2[2];
+    if (knn(points_[s], 2, idx, d2) == 2 && d2[1] > 0) spacing.push_back(std::sqrt(d2[1]));
+  }
+  if (spacing.empty()) return;
+  std::nth_element(spacing.begin(), spacing.begin() + static_cast<long>(spacing.size() / 2), spacing.end());
+  build(points, 2.0f * spacing[spacing.size() / 2]);
+}
+
+void PointGrid::build(const Points& points, float cell) {
+  Vec3 lo = Vec3::Constant(INFINITY), hi = Vec3::Constant(-INFINITY);
+  std::size_t finite = 0;
+  for (const Vec3& p : points)
+    if (p.allFinite()) {
+      lo = lo.cwiseMin(p);
+      hi = hi.cwiseMax(p);
+      ++finite;
+    }
+  offsets_.assign(2, 0);
+  ids_.clear();
+  points_.clear();
+  nx_ = ny_ = nz_ = 1;
+  if (finite == 0) return;
+  robustBox(points, finite, lo, hi);
+  const Vec3 extent = (hi - lo).cwiseMax(Vec3::Constant(1e-6f));
+  const double max_cells = std::max<double>(4.0 * double(finite), double(1 << 20));
+  const double volume = double(extent.x()) * extent.y() * extent.z();
+  if (!(cell > 0)) cell = static_cast<float>(2.0 * std::cbrt(volume / double(finite)));  // the first, coarse grid
+  cell = std::max({cell, static_cast<float>(std::cbrt(volume / max_cells)), 1e-6f * extent.maxCoeff()});
+  auto cellsAlong = [&](float e) { return static_cast<int>(std::min<double>(std::floor(e / cell) + 1, max_cells)); };
+  for (;;) {  // a flat or thin box: the cube-root bound above can still leave too many cells
+    nx_ = cellsAlong(extent.x());
+    ny_ = cellsAlong(extent.y());
+    nz_ = cellsAlong(extent.z());
+    if (double(nx_) * ny_ * nz_ <= max_cells) break;
+    cell *= 1.25f;
+  }
+  cell_ = cell;
+  lo_ = lo;
+  const std::size_t cells = std::size_t(nx_) * std::size_t(ny_) * std::size_t(nz_);
+  std::vector<std::uint32_t> cell_of(points.size(), UINT32_MAX);
+  offsets_.assign(cells + 1, 0);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (!points[i].allFinite()) continue;
+    const Vec3 a = (points[i] - lo_) / cell_;
+    const std::size_t c = (std::size_t(clampCell(a.z(), nz_)) * ny_ + clampCell(a.y(), ny_)) * nx_ + clampCell(a.x(), nx_);
+    cell_of[i] = static_cast<std::uint32_t>(c);
+    ++offsets_[c + 1];
+  }
+  for (std::size_t c = 0; c < cells; ++c) offsets_[c + 1] += offsets_[c];
+  ids_.resize(finite);
+  points_.resize(finite);
+  std::vector<std::uint32_t> next(offsets_.begin(), offsets_.end() - 1);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (cell_of[i] == UINT32_MAX) continue;
+    const std::uint32_t at = next[cell_of[i]]++;
+    ids_[at] = static_cast<std::uint32_t>(i);
+    points_[at] = points[i];
+  }
+}
+
+PointGrid::Box PointGrid::boxAround(const Vec3& q, float radius) const {
+  const Vec3 a = (q - lo_) / cell_;
+  const float r = radius / cell_;
+  return {clampCell(a.x() - r, nx_), clampCell(a.x() + r, nx_), clampCell(a.y() - r, ny_),
+          clampCell(a.y() + r, ny_), clampCell(a.z() - r, nz_), clampCell(a.z() + r, nz_)};
+}
+
+std::size_t PointGrid::knn(const Vec3& q, std::size_t k, std::uint32_t* indices, float* sq_dists) const {
+  if (k == 0 || ids_.empty() || !q.allFinite()) return 0;
+  k = std::min(k, ids_.size());
+  // Boxes of growing radius; done once the k-th nearest lies within the box's radius (every
+  // point that close lies inside the box), or the box holds every cell.
+  for (float radius = cell_;; radius *= 2.0f) {
+    Best best{k, 0, indices, sq_dists};
+    const Box b = boxAround(q, radius);
+    for (int z = b.z0; z <= b.z1; ++z)
+      for (int y = b.y0; y <= b.y1; ++y) {
+        const std::size_t row = (std::size_t(z) * ny_ + y) * nx_;
+        for (std::uint32_t s = offsets_[row + b.x0]; s < offsets_[row + b.x1 + 1]; ++s)
+          best.offer((points_[s] - q).squaredNorm(), ids_[s]);
+      }
+    const bool all = b.x0 == 0 && b.y0 == 0 && b.z0 == 0 && b.x1 == nx_ - 1 && b.y1 == ny_ - 1 && b.z1 == nz_ - 1;
+    if ((best.count == k && sq_dists[k - 1] <= radius * radius) || all) return best.count;
+  }
+}
+
+bool PointGrid::nearest(const Vec3& q, float max_distance, std::uint32_t& index, float& sq_dist) const {
+  if (ids_.empty() || !q.allFinite() || !(max_distance >= 0)) return false;
+  auto search = [&](float radius) {
+    bool found = false;
+    const float limit = radius * radius;
+    const Box b = boxAround(q, radius);
+    for (int z = b.z0; z <= b.z1; ++z)
+      for (int y = b.y0; y <= b.y1; ++y) {
+        const std::size_t row = (std::size_t(z) * ny_ + y) * nx_;
+        for (std::uint32_t s = offsets_[row + b.x0]; s < offsets_[row + b.x1 + 1]; ++s) {
+          const float d2 = (points_[s] - q).squaredNorm();
+          if (d2 > limit || (found && (d2 > sq_dist || (d2 == sq_dist && ids_[s] > index)))) continue;
+          sq_dist = d2;
+          index = ids_[s];
+          found = true;
+        }
+      }
+    return found;
+  };
+  // Most queries have a neighbour within one cell: the 27 cells around q settle them.
+  if (max_distance > cell_ && search(cell_)) return true;
+  return search(max_distance);
+}
+
+}  // namespace binpose

@@ -1,0 +1,129 @@
+// The scan's neighbour grid against brute force.
+#include <binpose/geometry.hpp>
+#include <binpose/point_grid.hpp>
+
+#include "test_util.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <utility>
+
+using namespace binpose;
+
+namespace {
+
+/// The k nearest by brute force: (squared distance, index), nearest first, ties by index.
+std::vector<std::pair<float, std::uint32_t>> bruteKnn(const Points& points, const Vec3& q, std::size_t k) {
+  std::vector<std::pair<float, std::uint32_t>> all;
+  for (std::size_t i = 0; i < points.size(); ++i)
+    if (points[i].allFinite()) all.push_back({(points[i] - q).squaredNorm(), static_cast<std::uint32_t>(i)});
+  std::sort(all.begin(), all.end());
+  all.resize(std::min(k, all.size()));
+  return all;
+}
+
+/// A depth-scan-like surface: a wavy sheet on a 1 mm pixel grid (many equal distances) and a
+/// random cluster above it.
+Points scanLike() {
+  Points points;
+  for (int y = 0; y < 60; ++y)
+    for (int x = 0; x < 80; ++x) points.emplace_back(float(x), float(y), 500.0f + 3.0f * std::sin(0.2f * float(x)));
+  Rng rng(5);
+  for (int i = 0; i < 500; ++i)
+    points.emplace_back(float(40 * rng.uniform()), float(30 * rng.uniform()), float(480 + 10 * rng.uniform()));
+  return points;
+}
+
+}  // namespace
+
+TEST(PointGrid, KnnEqualsBruteForceTiesIncluded) {
+  const Points points = scanLike();
+  for (const float cell : {0.0f, 0.7f, 2.0f, 9.0f}) {
+    const PointGrid grid(points, cell);
+    Rng rng(9);
+    for (int t = 0; t < 300; ++t) {
+      // On points (exact ties on the pixel grid), near them, and far outside the cloud.
+      Vec3 q = points[rng.below(points.size())];
+      if (t % 3 == 1) q += Vec3(float(rng.uniform()), float(rng.uniform()), float(rng.uniform()));
+      if (t % 3 == 2) q += Vec3(0, 0, -300.0f * float(rng.uniform()) - 50.0f);
+      const std::size_t k = 1 + t % 8;
+      std::uint32_t idx[8];
+      float d2[8];
+      const std::size_t n = grid.knn(q, k, idx, d2);
+      const auto truth = bruteKnn(points, q, k);
+      ASSERT_EQ(n, truth.size());
+      for (std::size_t j = 0; j < n; ++j) {
+        EXPECT_EQ(idx[j], truth[j].second) << "cell " << cell << " query " << t << " rank " << j;
+        EXPECT_EQ(d2[j], truth[j].first);
+      }
+    }
+  }
+}
+
+TEST(PointGrid, NearestWithinEqualsBruteForce) {
+  const Points points = scanLike();
+  const PointGrid grid(points);
+  Rng rng(11);
+  int found = 0, missed = 0;
+  for (int t = 0; t < 2000; ++t) {
+    const Vec3 q = points[rng.below(points.size())] + 4.0f * Vec3(float(rng.uniform()) - 0.5f, float(rng.uniform()) - 0.5f,
+                                                                  float(rng.uniform()) - 0.5f);
+    const float gate = 0.25f + 3.0f * float(rng.uniform());
+    const auto truth = bruteKnn(points, q, 1);
+    const bool within = truth[0].first <= gate * gate;
+    std::uint32_t j = 0;
+    float d2 = 0;
+    ASSERT_EQ(grid.nearest(q, gate, j, d2), within) << "query " << t;
+    if (!within) {
+      ++missed;
+      continue;
+    }
+    ++found;
+    EXPECT_EQ(j, truth[0].second);
+    EXPECT_EQ(d2, truth[0].first);
+  }
+  EXPECT_GT(found, 500);  // both outcomes were exercised
+  EXPECT_GT(missed, 100);
+}
+
+TEST(PointGrid, FewOrBadPointsAreHandled) {
+  std::uint32_t idx[4];
+  float d2[4];
+  const PointGrid empty(Points{});
+  EXPECT_EQ(empty.knn(Vec3::Zero(), 3, idx, d2), 0u);
+  EXPECT_FALSE(empty.nearest(Vec3::Zero(), 10.0f, idx[0], d2[0]));
+
+  // Non-finite points are never neighbours; fewer points than k gives them all.
+  const Points points = {{0, 0, 0}, {NAN, 0, 0}, {1, 0, 0}, {0, INFINITY, 0}, {5, 5, 5}};
+  const PointGrid grid(points);
+  EXPECT_EQ(grid.size(), 3u);
+  ASSERT_EQ(grid.knn(Vec3(0.9f, 0, 0), 4, idx, d2), 3u);
+  EXPECT_EQ(idx[0], 2u);
+  EXPECT_EQ(idx[1], 0u);
+  EXPECT_EQ(idx[2], 4u);
+  EXPECT_EQ(grid.knn(Vec3(NAN, 0, 0), 2, idx, d2), 0u);
+  EXPECT_FALSE(grid.nearest(Vec3(3, 3, 3), 1.0f, idx[0], d2[0]));
+  EXPECT_FALSE(grid.nearest(Vec3(0, 0, 0), NAN, idx[0], d2[0]));
+
+  // All points in one place: one cell, every distance tied.
+  const PointGrid same(Points(10, Vec3(1, 2, 3)));
+  ASSERT_EQ(same.knn(Vec3(1, 2, 3), 3, idx, d2), 3u);
+  EXPECT_EQ(idx[0], 0u);
+  EXPECT_EQ(idx[2], 2u);
+  EXPECT_EQ(d2[2], 0.0f);
+}
+
+TEST(PointGrid, AFarOutlierDoesNotExplodeTheGrid) {
+  Points points = scanLike();
+  points.emplace_back(1e7f, -1e7f, 1e7f);  // a stray point kilometres away
+  const PointGrid grid(points);
+  EXPECT_LT(grid.cellSize(), 4.0f);  // sized by the bulk of the points (about 2 spacings), not by the stray one
+  std::uint32_t j;
+  float d2;
+  ASSERT_TRUE(grid.nearest(points[100] + Vec3(0.1f, 0, 0), 1.0f, j, d2));
+  EXPECT_EQ(j, 100u);
+  std::uint32_t idx[2];
+  float dd[2];
+  ASSERT_EQ(grid.knn(Vec3(1e7f, -1e7f, 1e7f + 1), 1, idx, dd), 1u);
+  EXPECT_EQ(idx[0], points.size() - 1);
+}
