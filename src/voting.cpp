@@ -2,6 +2,7 @@
 #include <binpose/voting.hpp>
 
 #include <algorithm>
+#include <cstring>
 #include <numeric>
 #include <fmt/format.h>
 #include <tbb/blocked_range.h>
@@ -84,6 +85,22 @@ std::vector<std::size_t> selectCandidates(std::span<const std::uint32_t> values,
   return picked;
 }
 
+void Voter::countList(std::span<const ModelDatabase::PointId> ids, std::uint16_t times) {
+  // Four ids per load: the increments bound this loop, and a load per id took about 5% more
+  // (BM_LocalVotes 108-111 ms against 104-105). No branch: every id counts.
+  auto add = [&](std::uint64_t id) { votes_[id] = static_cast<std::uint16_t>(votes_[id] + times); };
+  std::size_t i = 0;
+  for (; i + 4 <= ids.size(); i += 4) {
+    std::uint64_t four;
+    std::memcpy(&four, ids.data() + i, sizeof four);  // the four in either byte order: each counted once
+    add(four & 0xFFFF);
+    add((four >> 16) & 0xFFFF);
+    add((four >> 32) & 0xFFFF);
+    add(four >> 48);
+  }
+  for (; i < ids.size(); ++i) add(ids[i]);
+}
+
 Voter::Voter(const ModelDatabase& db, int keep, std::uint32_t max_list, float spacing)
     : db_(db), keep_(keep), max_list_(max_list), spacing_(spacing), votes_(db.model().points.size(), 0) {}
 
@@ -115,8 +132,7 @@ void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t
   for (std::size_t l = 0; l < std::min(kAhead, lists_.size()); ++l) prefetch(l);
   for (std::size_t l = 0; l < lists_.size(); ++l) {
     if (l + kAhead < lists_.size()) prefetch(l + kAhead);
-    const auto times = lists_[l].times;
-    for (const auto id : lists_[l].ids) votes_[id] = static_cast<std::uint16_t>(votes_[id] + times);  // no branch
+    countList(lists_[l].ids, lists_[l].times);
   }
   // A_k over the model points with a vote, in model order (a branch-free scan of the small
   // accumulator costs less than tracking first touches), then eq. 10-12.

@@ -59,6 +59,9 @@ class Voter {
                  std::vector<Correspondence>& out);
 
  private:
+  /// Adds `times` to the accumulator of each model point in `ids`.
+  void countList(std::span<const ModelDatabase::PointId> ids, std::uint16_t times);
+
   const ModelDatabase& db_;
   int keep_;
   std::uint32_t max_list_;
