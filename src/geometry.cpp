@@ -22,6 +22,18 @@ float diameter(const Points& points) {
   return std::sqrt(best_sq);
 }
 
+void sortByCell(std::span<const std::uint32_t> cell_of, std::size_t cells, std::vector<std::uint32_t>& offsets,
+                std::vector<std::uint32_t>& order) {
+  offsets.assign(cells + 1, 0);
+  for (const auto c : cell_of)
+    if (c != kNoCell) ++offsets[c + 1];
+  for (std::size_t c = 0; c < cells; ++c) offsets[c + 1] += offsets[c];
+  order.resize(offsets[cells]);
+  std::vector<std::uint32_t> next(offsets.begin(), offsets.end() - 1);
+  for (std::size_t i = 0; i < cell_of.size(); ++i)
+    if (cell_of[i] != kNoCell) order[next[cell_of[i]]++] = static_cast<std::uint32_t>(i);
+}
+
 bool bounds(const Points& points, Vec3& lo, Vec3& hi) {
   if (points.empty()) return false;
   lo = hi = points.front();

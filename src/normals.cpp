@@ -1,7 +1,6 @@
 // Plane-fit normals (thesis 5.2.2).
 #include <binpose/normals.hpp>
 
-
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>

@@ -1,6 +1,8 @@
 // Uniform grid for short-range neighbour queries (normals, ICP, verification).
 #include <binpose/point_grid.hpp>
 
+#include <binpose/geometry.hpp>
+
 #include <algorithm>
 #include <cmath>
 
@@ -103,26 +105,16 @@ void PointGrid::build(const Points& points, float cell) {
   }
   cell_ = cell;
   lo_ = lo;
-  const std::size_t cells = std::size_t(nx_) * std::size_t(ny_) * std::size_t(nz_);
-  std::vector<std::uint32_t> cell_of(points.size(), UINT32_MAX);
-  offsets_.assign(cells + 1, 0);
+  std::vector<std::uint32_t> cell_of(points.size(), kNoCell);
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (!points[i].allFinite()) continue;
     const Vec3 a = (points[i] - lo_) / cell_;
-    const std::size_t c = (std::size_t(clampCell(a.z(), nz_)) * ny_ + clampCell(a.y(), ny_)) * nx_ + clampCell(a.x(), nx_);
-    cell_of[i] = static_cast<std::uint32_t>(c);
-    ++offsets_[c + 1];
+    cell_of[i] = static_cast<std::uint32_t>((std::size_t(clampCell(a.z(), nz_)) * ny_ + clampCell(a.y(), ny_)) * nx_ +
+                                            clampCell(a.x(), nx_));
   }
-  for (std::size_t c = 0; c < cells; ++c) offsets_[c + 1] += offsets_[c];
-  ids_.resize(finite);
-  points_.resize(finite);
-  std::vector<std::uint32_t> next(offsets_.begin(), offsets_.end() - 1);
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    if (cell_of[i] == UINT32_MAX) continue;
-    const std::uint32_t at = next[cell_of[i]]++;
-    ids_[at] = static_cast<std::uint32_t>(i);
-    points_[at] = points[i];
-  }
+  sortByCell(cell_of, std::size_t(nx_) * std::size_t(ny_) * std::size_t(nz_), offsets_, ids_);
+  points_.resize(ids_.size());
+  for (std::size_t s = 0; s < ids_.size(); ++s) points_[s] = points[ids_[s]];
 }
 
 PointGrid::Box PointGrid::boxAround(const Vec3& q, float radius) const {
@@ -130,6 +122,15 @@ PointGrid::Box PointGrid::boxAround(const Vec3& q, float radius) const {
   const float r = radius / cell_;
   return {clampCell(a.x() - r, nx_), clampCell(a.x() + r, nx_), clampCell(a.y() - r, ny_),
           clampCell(a.y() + r, ny_), clampCell(a.z() - r, nz_), clampCell(a.z() + r, nz_)};
+}
+
+template <class Visit>
+void PointGrid::forEachInBox(const Box& b, Visit&& visit) const {
+  for (int z = b.z0; z <= b.z1; ++z)
+    for (int y = b.y0; y <= b.y1; ++y) {
+      const std::size_t row = (std::size_t(z) * ny_ + y) * nx_;  // a row's cells are side by side in points_
+      for (std::uint32_t s = offsets_[row + b.x0]; s < offsets_[row + b.x1 + 1]; ++s) visit(s);
+    }
 }
 
 std::size_t PointGrid::knn(const Vec3& q, std::size_t k, std::uint32_t* indices, float* sq_dists) const {
@@ -140,12 +141,7 @@ std::size_t PointGrid::knn(const Vec3& q, std::size_t k, std::uint32_t* indices,
   for (float radius = cell_;; radius *= 2.0f) {
     Best best{k, 0, indices, sq_dists};
     const Box b = boxAround(q, radius);
-    for (int z = b.z0; z <= b.z1; ++z)
-      for (int y = b.y0; y <= b.y1; ++y) {
-        const std::size_t row = (std::size_t(z) * ny_ + y) * nx_;
-        for (std::uint32_t s = offsets_[row + b.x0]; s < offsets_[row + b.x1 + 1]; ++s)
-          best.offer((points_[s] - q).squaredNorm(), ids_[s]);
-      }
+    forEachInBox(b, [&](std::uint32_t s) { best.offer((points_[s] - q).squaredNorm(), ids_[s]); });
     const bool all = b.x0 == 0 && b.y0 == 0 && b.z0 == 0 && b.x1 == nx_ - 1 && b.y1 == ny_ - 1 && b.z1 == nz_ - 1;
     if ((best.count == k && sq_dists[k - 1] <= radius * radius) || all) return best.count;
   }
@@ -153,22 +149,14 @@ std::size_t PointGrid::knn(const Vec3& q, std::size_t k, std::uint32_t* indices,
 
 bool PointGrid::nearest(const Vec3& q, float max_distance, std::uint32_t& index, float& sq_dist) const {
   if (ids_.empty() || !q.allFinite() || !(max_distance >= 0)) return false;
-  auto search = [&](float radius) {
-    bool found = false;
+  auto search = [&](float radius) {  // the nearest within radius: knn's k = 1, beyond it left out
+    Best best{1, 0, &index, &sq_dist};
     const float limit = radius * radius;
-    const Box b = boxAround(q, radius);
-    for (int z = b.z0; z <= b.z1; ++z)
-      for (int y = b.y0; y <= b.y1; ++y) {
-        const std::size_t row = (std::size_t(z) * ny_ + y) * nx_;
-        for (std::uint32_t s = offsets_[row + b.x0]; s < offsets_[row + b.x1 + 1]; ++s) {
-          const float d2 = (points_[s] - q).squaredNorm();
-          if (d2 > limit || (found && (d2 > sq_dist || (d2 == sq_dist && ids_[s] > index)))) continue;
-          sq_dist = d2;
-          index = ids_[s];
-          found = true;
-        }
-      }
-    return found;
+    forEachInBox(boxAround(q, radius), [&](std::uint32_t s) {
+      const float d2 = (points_[s] - q).squaredNorm();
+      if (d2 <= limit) best.offer(d2, ids_[s]);
+    });
+    return best.count == 1;
   };
   // Most queries have a neighbour within one cell: the 27 cells around q settle them.
   if (max_distance > cell_ && search(cell_)) return true;

@@ -21,10 +21,6 @@ std::uint64_t cellKey(const Vec3& p, float size, int dims) {
   return key;
 }
 
-}  // namespace
-
-namespace {
-
 /// The point indices grouped by voxel (cubes of side `voxel` at floor(p / voxel)), each voxel's
 /// in increasing order; `first` marks where each voxel's run starts (and ends the last).
 void groupByVoxel(const Points& points, float voxel, std::vector<std::uint32_t>& order, std::vector<std::uint32_t>& first) {
@@ -45,16 +41,14 @@ void groupByVoxel(const Points& points, float voxel, std::vector<std::uint32_t>&
   if (small && size.prod() <= std::max(4.0 * double(n), double(1 << 20))) {
     // A counting sort over the box's voxels: O(n), each voxel's points in index order.
     const auto nx = static_cast<std::size_t>(size.x()), ny = static_cast<std::size_t>(size.y());
-    auto index = [&](const Eigen::Vector3i& c) {
-      return (std::size_t(c.z() - lo.z()) * ny + std::size_t(c.y() - lo.y())) * nx + std::size_t(c.x() - lo.x());
-    };
-    std::vector<std::uint32_t> offsets(static_cast<std::size_t>(size.prod()) + 1, 0);
-    for (std::size_t i = 0; i < n; ++i) ++offsets[index(cell[i]) + 1];
-    for (std::size_t v = 0; v + 1 < offsets.size(); ++v) {
-      if (offsets[v + 1] > 0) first.push_back(offsets[v]);
-      offsets[v + 1] += offsets[v];
+    std::vector<std::uint32_t> cell_of(n), offsets;
+    for (std::size_t i = 0; i < n; ++i) {
+      const Eigen::Vector3i c = cell[i] - lo;
+      cell_of[i] = static_cast<std::uint32_t>((std::size_t(c.z()) * ny + std::size_t(c.y())) * nx + std::size_t(c.x()));
     }
-    for (std::size_t i = 0; i < n; ++i) order[offsets[index(cell[i])]++] = static_cast<std::uint32_t>(i);
+    sortByCell(cell_of, static_cast<std::size_t>(size.prod()), offsets, order);
+    for (std::size_t v = 0; v + 1 < offsets.size(); ++v)
+      if (offsets[v + 1] > offsets[v]) first.push_back(offsets[v]);
   } else {  // a sparse box (a stray point far away): sorted keys
     std::vector<std::pair<std::uint64_t, std::uint32_t>> keyed(n);
     for (std::size_t i = 0; i < n; ++i) keyed[i] = {cellKey(points[i], voxel, 3), static_cast<std::uint32_t>(i)};

@@ -2,7 +2,10 @@
 // Small geometric helpers and the project's deterministic random generator.
 #include <binpose/types.hpp>
 
+#include <cstddef>
 #include <cstdint>
+#include <span>
+#include <vector>
 
 namespace binpose {
 
@@ -25,6 +28,15 @@ class Rng {
  private:
   std::uint64_t state_;
 };
+
+/// The cell of an item left out of sortByCell.
+constexpr std::uint32_t kNoCell = UINT32_MAX;
+
+/// Counting sort of items 0..n-1 by cell (cell_of[i] < cells, or kNoCell to leave item i out):
+/// `offsets` (cells + 1 of them) delimits each cell's run in `order`, a cell's items in
+/// increasing order. O(n + cells): the scan's grid and voxel sub-sampling both bucket this way.
+void sortByCell(std::span<const std::uint32_t> cell_of, std::size_t cells, std::vector<std::uint32_t>& offsets,
+                std::vector<std::uint32_t>& order);
 
 /// Largest distance between two points (exact, O(n^2), parallel). 0 for fewer than two points.
 float diameter(const Points& points);

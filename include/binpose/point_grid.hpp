@@ -15,8 +15,10 @@ namespace binpose {
 class PointGrid {
  public:
   /// Cubic cells of side `cell` (mm; 0: twice the median nearest-neighbour spacing, estimated on
-  /// a sample of the points). The cell grows when the cloud's box would need more than about
-  /// max(4 n, 2^20) cells (far outliers). Non-finite points are left out of every answer.
+  /// a sample of the points) over the bulk of the points (1st-99th percentile per axis, widened
+  /// by a tenth; points beyond go into the border cells, and every answer stays exact). The cell
+  /// grows when that box would need more than about max(4 n, 2^20) cells. Non-finite points are
+  /// left out of every answer.
   explicit PointGrid(const Points& points, float cell = 0.0f);
 
   /// Up to k nearest points of q: indices into the points and squared distances, nearest first
@@ -32,6 +34,9 @@ class PointGrid {
  private:
   struct Box { int x0, x1, y0, y1, z0, z1; };
   [[nodiscard]] Box boxAround(const Vec3& q, float radius) const;
+  /// visit(slot) for each point of the cells of `b` (slots index ids_ and points_).
+  template <class Visit>
+  void forEachInBox(const Box& b, Visit&& visit) const;
   void build(const Points& points, float cell);
 
   float cell_ = 1.0f;
