@@ -5,6 +5,7 @@
 #include <array>
 #include <cmath>
 #include <bit>
+#include <cstring>
 #include <numeric>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -125,24 +126,44 @@ std::vector<char> coreOf(const Graph& g, std::vector<int> degree, int k) {
   return in_core;
 }
 
-/// Row i of the consistency graph (eq. 13-16) from word `first` on, 64 partners to a word.
-/// Built for AVX2 as well as the baseline, the better one chosen at run time; no FMA, so every
-/// build computes the same bits.
+/// Squared model distances d_m^2 that eq. 15-16 accept against a scene distance d_s: those with
+/// |d_m - d_s| < e_gmax, that is (d_s - e_gmax)^2 < d_m^2 < (d_s + e_gmax)^2 (no lower bound
+/// when d_s <= e_gmax).
+struct Band {
+  float low2, high2;
+};
+
+Band bandOf(float ds, float e_gmax) {
+  const float low = ds - e_gmax;
+  return {low > 0 ? low * low : -1.0f, (ds + e_gmax) * (ds + e_gmax)};
+}
+
+/// Row i of the consistency graph (eq. 13-16) from word `first` on, 64 partners to a word:
+/// j is linked when its squared model distance to i lies in the band of their scene distance
+/// (`low2`, `high2`, per column). Built for AVX2 as well as the baseline, the better one chosen
+/// at run time; no FMA, so every build computes the same bits.
 __attribute__((target_clones("avx2", "default")))
-void linkRow(const std::array<const float*, 6>& c, int i, int n, int first, float e_gmax, std::uint64_t* row) {
+void linkRow(const std::array<const float*, 3>& m, const float* low2, const float* high2, int i, int n, int first,
+             std::uint64_t* row) {
   alignas(64) std::array<std::uint8_t, 64> linked{};
+  const float x = m[0][i], y = m[1][i], z = m[2][i];
   for (int w0 = first * 64; w0 < n; w0 += 64) {
     const int count = std::min(64, n - w0);
     for (int b = 0; b < count; ++b) {
       const int j = w0 + b;
-      const float sx = c[0][j] - c[0][i], sy = c[1][j] - c[1][i], sz = c[2][j] - c[2][i];
-      const float mx = c[3][j] - c[3][i], my = c[4][j] - c[4][i], mz = c[5][j] - c[5][i];
-      const float ds = std::sqrt(sx * sx + sy * sy + sz * sz), dm = std::sqrt(mx * mx + my * my + mz * mz);
-      linked[b] = std::abs(dm - ds) < e_gmax;
+      const float mx = m[0][j] - x, my = m[1][j] - y, mz = m[2][j] - z;
+      const float dm2 = mx * mx + my * my + mz * mz;
+      linked[b] = (dm2 > low2[j]) & (dm2 < high2[j]);
     }
+    // Eight 0/1 bytes to eight bits by one multiply (each byte's bit lands in the top byte,
+    // on its own place; no two partial products meet): a byte at a time cost twice the tests.
     std::uint64_t word = 0;
-    for (int b = 0; b < count; ++b) word |= std::uint64_t{linked[b]} << b;
-    row[w0 / 64] = word;
+    for (int g = 0; g < 8; ++g) {
+      std::uint64_t eight;
+      std::memcpy(&eight, linked.data() + 8 * g, sizeof eight);
+      word |= ((eight * 0x0102040810204080ull) >> 56) << (8 * g);
+    }
+    row[w0 / 64] = count == 64 ? word : word & ((1ull << count) - 1);  // bytes past count are stale
   }
 }
 
@@ -187,13 +208,17 @@ CliqueResult maximumClique(const Graph& g, std::uint64_t work_limit) {
     const int m = static_cast<int>(order.size());
     std::vector<int> position(static_cast<std::size_t>(n), -1);
     for (int a = 0; a < m; ++a) position[order[a]] = a;
+    Bits core(static_cast<std::size_t>(g.words()), 0);
+    for (const int v : order) core[v / 64] |= 1ull << (v % 64);
     Graph sorted(m);
-    for (int a = 0; a < m; ++a) {  // each row's bits moved to their new places
+    for (int a = 0; a < m; ++a) {  // each row's bits within the core moved to their new places
       std::uint64_t* to = sorted.mutableRow(a);
       const std::uint64_t* from = g.row(order[a]);
       for (int w = 0; w < g.words(); ++w)
-        for (std::uint64_t bits = from[w]; bits; bits &= bits - 1)
-          if (const int b = position[w * 64 + std::countr_zero(bits)]; b >= 0) to[b / 64] |= 1ull << (b % 64);
+        for (std::uint64_t bits = from[w] & core[w]; bits; bits &= bits - 1) {
+          const int b = position[w * 64 + std::countr_zero(bits)];
+          to[b / 64] |= 1ull << (b % 64);
+        }
     }
     CliqueResult found = Search(sorted, work_limit, greedy.size()).run();
     r.exact = found.exact;
@@ -210,23 +235,39 @@ CliqueResult maximumClique(const Graph& g, std::uint64_t work_limit) {
 Graph consistencyGraph(std::span<const Correspondence> cps, const Points& scene, const Points& model, float e_gmax) {
   const int n = static_cast<int>(cps.size());
   Graph g(n);
-  // Coordinates side by side, so the inner loop runs on SIMD lanes. Row i is computed from its
-  // diagonal word on (the 64 x 64 blocks on and above the diagonal); the blocks below are those
-  // above, bit-transposed. The two distances are bitwise equal either way round, so this is the
+  // Pairs of one scene point come in runs (a point's candidates): the scene distance, and with
+  // it the band of accepted model distances, is computed once per run and shared by its pairs.
+  // Model coordinates side by side, so the inner loop runs on SIMD lanes. Row i is computed from
+  // its diagonal word on (the 64 x 64 blocks on and above the diagonal); the blocks below are
+  // those above, bit-transposed. Both distances are the same either way round, so this is the
   // graph of every (i, j) computed in full.
-  std::array<std::vector<float>, 6> c;
+  std::vector<int> run_start;  // first pair of each run of equal scene points, then n
+  for (int i = 0; i < n; ++i)
+    if (i == 0 || cps[i].scene != cps[i - 1].scene) run_start.push_back(i);
+  run_start.push_back(n);
+  std::array<std::vector<float>, 3> c;
   for (auto& v : c) v.resize(cps.size());
   for (int i = 0; i < n; ++i)
-    for (int k = 0; k < 3; ++k) {
-      c[k][i] = scene[cps[i].scene][k];
-      c[3 + k][i] = model[cps[i].model][k];
-    }
-  const std::array<const float*, 6> coords{c[0].data(), c[1].data(), c[2].data(), c[3].data(), c[4].data(), c[5].data()};
-  tbb::parallel_for(tbb::blocked_range<int>(0, n, 32), [&](const tbb::blocked_range<int>& rows) {  // rows apart
-    for (int i = rows.begin(); i < rows.end(); ++i) {
-      std::uint64_t* row = g.mutableRow(i);
-      linkRow(coords, i, n, i / 64, e_gmax, row);
-      row[i / 64] &= ~(1ull << (i % 64));
+    for (int k = 0; k < 3; ++k) c[k][i] = model[cps[i].model][k];
+  const std::array<const float*, 3> coords{c[0].data(), c[1].data(), c[2].data()};
+  const int runs = static_cast<int>(run_start.size()) - 1;
+  tbb::parallel_for(tbb::blocked_range<int>(0, runs, 4), [&](const tbb::blocked_range<int>& range) {  // runs apart
+    std::vector<float> low2(cps.size()), high2(cps.size());
+    for (int r = range.begin(); r < range.end(); ++r) {
+      const int first_row = run_start[r];
+      const Vec3& s = scene[cps[first_row].scene];
+      // The bands of the columns from the row's diagonal word on, run by run.
+      const auto first_run = std::upper_bound(run_start.begin(), run_start.end(), first_row / 64 * 64) - run_start.begin() - 1;
+      for (auto q = first_run; q < runs; ++q) {
+        const Band band = bandOf((scene[cps[run_start[q]].scene] - s).norm(), e_gmax);
+        std::fill(low2.begin() + run_start[q], low2.begin() + run_start[q + 1], band.low2);
+        std::fill(high2.begin() + run_start[q], high2.begin() + run_start[q + 1], band.high2);
+      }
+      for (int i = first_row; i < run_start[r + 1]; ++i) {
+        std::uint64_t* row = g.mutableRow(i);
+        linkRow(coords, low2.data(), high2.data(), i, n, i / 64, row);
+        row[i / 64] &= ~(1ull << (i % 64));
+      }
     }
   });
   const int blocks = g.words();

@@ -155,12 +155,42 @@ TEST(Clique, ConsistencyGraphFollowsEquations13To16) {
       if (a == b) continue;
       const float dm = (model[cps[a].model] - model[cps[b].model]).norm();
       const float ds = (scene[cps[a].scene] - scene[cps[b].scene]).norm();
+      if (std::abs(std::abs(dm - ds) - e_gmax) < 1e-4f) continue;  // on the limit: either answer, by rounding
       ASSERT_EQ(g.adjacent(a, b), std::abs(dm - ds) < e_gmax) << a << " " << b;
+      ASSERT_EQ(g.adjacent(a, b), g.adjacent(b, a));
       edges += g.adjacent(a, b);
     }
   }
   EXPECT_GT(edges, 60 * 59);  // the rigid copy is one clique
   EXPECT_EQ(maximumClique(g).vertices.size(), 60u);
+}
+
+TEST(Clique, ConsistencyGraphOfCandidateRunsFollowsEquations13To16) {
+  // The fast preset's layout: each scene point's candidates side by side (runs of 1-12 pairs of
+  // one scene point, across word boundaries), the first model point of each run the true one.
+  Rng rng(31);
+  Points model, scene;
+  for (int i = 0; i < 300; ++i) model.emplace_back(Vec3(rng.uniform(), rng.uniform(), rng.uniform()) * 60.0f);
+  Pose pose = Pose::Identity();
+  pose.linear() = Eigen::AngleAxisf(-1.1f, Vec3(2, -1, 1).normalized()).toRotationMatrix();
+  pose.translation() = Vec3(-40, 12, 450);
+  std::vector<Correspondence> cps;
+  for (std::uint32_t s = 0; s < 60; ++s) {
+    const auto truth = static_cast<std::uint32_t>(rng.below(300));
+    scene.push_back(pose * model[truth]);
+    const std::size_t run = 1 + rng.below(12);
+    for (std::size_t k = 0; k < run; ++k) cps.push_back({s, k == 0 ? truth : static_cast<std::uint32_t>(rng.below(300))});
+  }
+  const float e_gmax = 1.5f;
+  const Graph g = consistencyGraph(cps, scene, model, e_gmax);
+  ASSERT_GT(g.words(), 3);
+  for (int a = 0; a < g.size(); ++a)
+    for (int b = 0; b < g.size(); ++b) {
+      const float dm = (model[cps[a].model] - model[cps[b].model]).norm();
+      const float ds = (scene[cps[a].scene] - scene[cps[b].scene]).norm();
+      if (a == b || std::abs(std::abs(dm - ds) - e_gmax) < 1e-4f) continue;
+      ASSERT_EQ(g.adjacent(a, b), std::abs(dm - ds) < e_gmax) << a << " " << b;
+    }
 }
 
 TEST(Clique, CorePruningProvesAPlantedCliqueAmongManyVertices) {
