@@ -39,6 +39,17 @@ Fourths fourthsOfHistogram(std::span<const std::uint32_t> histogram) {
   return {medianOf(histogram, 0, half), medianOf(histogram, n - half, half)};
 }
 
+namespace {
+
+/// Eq. 10-11 on the histogram of a data set (histogram[v]: how many hold v): the value above
+/// which one is an upper outlier, x_u + 3 xi_s.
+double outlierLimit(std::span<const std::uint32_t> histogram) {
+  const Fourths f = fourthsOfHistogram(histogram);
+  return f.upper + 3.0 * f.spread();  // eq. 11
+}
+
+}  // namespace
+
 void upperOutliers(std::span<const std::uint32_t> values, std::vector<std::uint32_t>& histogram,
                    std::vector<std::size_t>& out) {
   out.clear();
@@ -46,8 +57,7 @@ void upperOutliers(std::span<const std::uint32_t> values, std::vector<std::uint3
   const std::uint32_t top = *std::max_element(values.begin(), values.end());
   histogram.assign(std::size_t{top} + 1, 0);
   for (const auto v : values) ++histogram[v];
-  const Fourths f = fourthsOfHistogram(histogram);
-  const double limit = f.upper + 3.0 * f.spread();
+  const double limit = outlierLimit(histogram);
   if (!(top > limit)) return;  // eq. 11: no upper outlier, no candidate
   for (std::size_t i = 0; i < values.size(); ++i)
     if (values[i] > limit) out.push_back(i);
@@ -55,24 +65,25 @@ void upperOutliers(std::span<const std::uint32_t> values, std::vector<std::uint3
 
 namespace {
 
-/// Orders indices into `values` by more votes first, then by index.
-auto moreVotes(std::span<const std::uint32_t> values) {
-  return [values](std::size_t a, std::size_t b) { return values[a] != values[b] ? values[a] > values[b] : a < b; };
+/// Orders indices by more votes first (value(i)), then by index.
+template <typename Value>
+auto moreVotes(Value value) {
+  return [value](std::size_t a, std::size_t b) { return value(a) != value(b) ? value(a) > value(b) : a < b; };
 }
 
-/// selectCandidates into `picked`, with the caller's scratch.
-void selectInto(std::span<const std::uint32_t> values, int keep, std::vector<std::uint32_t>& histogram,
-                std::vector<std::size_t>& picked) {
-  upperOutliers(values, histogram, picked);
+/// Eq. 12 on the upper outliers `picked` (ascending indices, value(i) their votes): with keep <= 1
+/// the maximum (ties all kept), else the `keep` with most votes, ties by index, best first.
+template <typename Value>
+void keepBest(std::vector<std::size_t>& picked, int keep, Value value) {
   if (picked.empty()) return;
-  if (keep <= 1) {  // eq. 12: the maximum (ties all kept)
+  if (keep <= 1) {
     std::uint32_t top = 0;
-    for (const auto i : picked) top = std::max(top, values[i]);
-    std::erase_if(picked, [&](std::size_t i) { return values[i] != top; });
+    for (const auto i : picked) top = std::max<std::uint32_t>(top, value(i));
+    std::erase_if(picked, [&](std::size_t i) { return value(i) != top; });
     return;
   }
   const auto cut = picked.begin() + std::min<std::ptrdiff_t>(keep, static_cast<std::ptrdiff_t>(picked.size()));
-  std::partial_sort(picked.begin(), cut, picked.end(), moreVotes(values));
+  std::partial_sort(picked.begin(), cut, picked.end(), moreVotes(value));
   picked.erase(cut, picked.end());
 }
 
@@ -81,7 +92,8 @@ void selectInto(std::span<const std::uint32_t> values, int keep, std::vector<std
 std::vector<std::size_t> selectCandidates(std::span<const std::uint32_t> values, int keep) {
   std::vector<std::uint32_t> histogram;
   std::vector<std::size_t> picked;
-  selectInto(values, keep, histogram, picked);
+  upperOutliers(values, histogram, picked);
+  keepBest(picked, keep, [values](std::size_t i) { return values[i]; });
   return picked;
 }
 
@@ -134,31 +146,43 @@ void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t
     if (l + kAhead < lists_.size()) prefetch(l + kAhead);
     countList(lists_[l].ids, lists_[l].times);
   }
-  // A_k over the model points with a vote, in model order (a branch-free scan of the small
-  // accumulator costs less than tracking first touches), then eq. 10-12.
-  const auto n = static_cast<std::uint32_t>(votes_.size());
-  touched_.resize(n);
-  values_.resize(n);
-  std::size_t count = 0;
-  for (std::uint32_t id = 0; id < n; ++id) {
-    touched_[count] = id;
-    values_[count] = votes_[id];
-    count += votes_[id] != 0;
-  }
+  select(k, out);
   std::fill(votes_.begin(), votes_.end(), std::uint16_t{0});
-  if (count == 0) return;
-  values_.resize(count);
+}
+
+void Voter::select(std::uint32_t k, std::vector<Correspondence>& out) {
+  // A_k is the model points with a vote (eq. 9-10): its histogram is the accumulator's without
+  // the zeros. Four histograms side by side, so that runs of equal votes do not wait on each other.
+  std::uint16_t top = 0;
+  for (const auto v : votes_) top = std::max(top, v);
+  if (top == 0) return;
+  const std::size_t bins = std::size_t{top} + 1;
+  histogram_.assign(4 * bins, 0);
+  const std::size_t n = votes_.size();
+  std::size_t id = 0;
+  for (; id + 4 <= n; id += 4)
+    for (std::size_t lane = 0; lane < 4; ++lane) ++histogram_[lane * bins + votes_[id + lane]];
+  for (; id < n; ++id) ++histogram_[votes_[id]];
+  for (std::size_t v = 0; v < bins; ++v)
+    histogram_[v] += histogram_[bins + v] + histogram_[2 * bins + v] + histogram_[3 * bins + v];
+  histogram_[0] = 0;
+  const double limit = outlierLimit(std::span<const std::uint32_t>(histogram_.data(), bins));
+  if (!(top > limit)) return;  // eq. 11: no upper outlier, no candidate
+  const auto above = static_cast<std::uint16_t>(limit);  // votes are whole: v > limit <=> v > floor(limit)
+  outliers_.clear();
+  for (std::size_t m = 0; m < n; ++m)
+    if (votes_[m] > above) outliers_.push_back(m);
+  const auto value = [this](std::size_t m) { return std::uint32_t{votes_[m]}; };
   if (keep_ <= 1 || spacing_ <= 0) {
-    selectInto(values_, keep_, histogram_, outliers_);
-    for (const std::size_t i : outliers_) out.push_back({k, touched_[i]});
+    keepBest(outliers_, keep_, value);
+    for (const std::size_t m : outliers_) out.push_back({k, static_cast<std::uint32_t>(m)});
     return;
   }
   // The upper outliers best first (sorted a batch at a time: usually the first batch holds all
   // that are kept); each kept unless a better one kept lies within spacing_.
   const Points& model = db_.model().points;
   const std::size_t first = out.size();
-  upperOutliers(values_, histogram_, outliers_);
-  const auto better = moreVotes(values_);
+  const auto better = moreVotes(value);
   const std::size_t batch = 4 * static_cast<std::size_t>(keep_);
   for (std::size_t r = 0, sorted = 0; r < outliers_.size(); ++r) {
     if (r == sorted) {
@@ -166,11 +190,11 @@ void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t
       std::partial_sort(outliers_.begin() + static_cast<std::ptrdiff_t>(r),
                         outliers_.begin() + static_cast<std::ptrdiff_t>(sorted), outliers_.end(), better);
     }
-    const Vec3& m = model[touched_[outliers_[r]]];
+    const Vec3& m = model[outliers_[r]];
     bool near = false;
     for (std::size_t c = first; c < out.size() && !near; ++c) near = (model[out[c].model] - m).squaredNorm() < spacing_ * spacing_;
     if (near) continue;
-    out.push_back({k, touched_[outliers_[r]]});
+    out.push_back({k, static_cast<std::uint32_t>(outliers_[r])});
     if (out.size() - first >= static_cast<std::size_t>(keep_)) break;
   }
 }

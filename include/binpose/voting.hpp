@@ -61,12 +61,13 @@ class Voter {
  private:
   /// Adds `times` to the accumulator of each model point in `ids`.
   void countList(std::span<const ModelDatabase::PointId> ids, std::uint16_t times);
+  /// Appends scene point k's candidates, the upper outliers of the accumulator (eq. 10-12).
+  void select(std::uint32_t k, std::vector<Correspondence>& out);
 
   const ModelDatabase& db_;
   int keep_;
   std::uint32_t max_list_;
   float spacing_;
-  std::vector<std::uint32_t> values_;     ///< the accumulator's non-zero values
   std::vector<std::uint32_t> keys_;       ///< the keys of one point's features
   struct List {
     std::span<const ModelDatabase::PointId> ids;
@@ -74,9 +75,8 @@ class Voter {
   };
   std::vector<List> lists_;  ///< the model point lists of those keys
   std::vector<std::uint16_t> votes_;      ///< A_k, one counter per model point
-  std::vector<std::uint32_t> touched_;    ///< model points with a vote
-  std::vector<std::uint32_t> histogram_;  ///< scratch of upperOutliers
-  std::vector<std::size_t> outliers_;     ///< indices into values_ of the upper outliers
+  std::vector<std::uint32_t> histogram_;  ///< the accumulator's histogram (four side by side)
+  std::vector<std::size_t> outliers_;     ///< model points whose votes are upper outliers
 };
 
 /// Voter::vote with the points of a group shared among threads: the same pairs in the same
