@@ -11,6 +11,7 @@
 #include <binpose/sweep.hpp>
 
 #include <CLI/CLI.hpp>
+#include <tbb/global_control.h>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
@@ -95,6 +96,7 @@ struct DetectOptions {
   std::vector<float> viewpoint;
   std::optional<std::uint64_t> seed;
   int model_points = 4000;
+  int threads = 0;
 };
 
 void addDetect(CLI::App& app, DetectOptions& o) {
@@ -129,6 +131,8 @@ void addDetect(CLI::App& app, DetectOptions& o) {
   d->add_option("--min-score", o.min_score, "Smallest accepted verification score in [0, 1]");
   d->add_option("--viewpoint", o.viewpoint, "Sensor origin x y z in the scan frame, mm (default: the file's, else 0 0 0)")->expected(3);
   d->add_option("--seed", o.seed, "Seed of the random sub-sampling");
+  d->add_option("--threads", o.threads, "Worker threads (0: all cores); the detections are the same whatever the count")
+      ->check(CLI::Range(0, 1024))->capture_default_str();
 }
 
 /// Preset, scaled to the model, then the JSON file, then the options given on the command line.
@@ -206,6 +210,8 @@ std::string resultJson(const binpose::DetectionResult& r, const binpose::Detecti
 }
 
 int runDetect(const DetectOptions& o) {
+  std::optional<tbb::global_control> threads;
+  if (o.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(o.threads));
   const binpose::ModelDatabase db = loadOrTrain(o);
   const binpose::PointCloud scan = loadScene(o);
   const float diameter = db.model().diameter;

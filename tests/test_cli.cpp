@@ -157,6 +157,9 @@ TEST(DetectCli, BadInputExitsTwoWithOneLine) {
   EXPECT_NE(run.err.find("checksum"), std::string::npos) << run.err;
   run = runCli(fmt::format("detect --model {} --scene {}", capDatabase(), test::tempPath("depth.png")));
   EXPECT_EQ(run.code, 2);
+  run = runCli(fmt::format("detect --model {} --scene {} --threads -2", capDatabase(), dataPath("pcl_milk/milk.pcd")));
+  EXPECT_EQ(run.code, 2);
+  EXPECT_NE(run.err.find("--threads"), std::string::npos) << run.err;
 }
 
 TEST(DetectCli, ParametersFromJsonAndPreset) {
