@@ -2,8 +2,9 @@
 #include <binpose/planes.hpp>
 
 #include <binpose/geometry.hpp>
-#include <binpose/kdtree.hpp>
+#include <binpose/point_grid.hpp>
 
+#include <array>
 #include <cmath>
 #include <fmt/format.h>
 
@@ -18,11 +19,10 @@ bool onPlane(const Vec3& p, const Vec3& n, const Plane& plane, float tolerance, 
 std::vector<std::vector<std::uint32_t>> patches(const Points& points, const std::vector<std::uint32_t>& members, float link) {
   Points sub;
   for (const auto i : members) sub.push_back(points[i]);
-  const KdTree tree(sub);
+  const PointGrid grid(sub, link);
   std::vector<char> seen(sub.size(), 0);
   std::vector<std::vector<std::uint32_t>> out;
-  std::vector<std::uint32_t> stack;
-  std::vector<std::pair<std::uint32_t, float>> found;
+  std::vector<std::uint32_t> stack, found;
   for (std::uint32_t s = 0; s < sub.size(); ++s) {
     if (seen[s]) continue;
     std::vector<std::uint32_t> patch;
@@ -32,8 +32,8 @@ std::vector<std::vector<std::uint32_t>> patches(const Points& points, const std:
       const std::uint32_t a = stack.back();
       stack.pop_back();
       patch.push_back(members[a]);
-      tree.radius(sub[a], link, found);
-      for (const auto& [b, d2] : found)
+      grid.within(sub[a], link, found);
+      for (const auto b : found)
         if (!seen[b]) {
           seen[b] = 1;
           stack.push_back(b);
@@ -42,6 +42,40 @@ std::vector<std::vector<std::uint32_t>> patches(const Points& points, const std:
     out.push_back(std::move(patch));
   }
   return out;
+}
+
+/// The points a RANSAC hypothesis is scored on, coordinates and normals side by side.
+struct Probe {
+  std::array<std::vector<float>, 6> c;  // x, y, z, nx, ny, nz
+
+  void assign(const Points& points, const Points& normals, const std::vector<std::uint32_t>& chosen) {
+    for (auto& v : c) v.resize(chosen.size());
+    for (std::size_t k = 0; k < chosen.size(); ++k)
+      for (int a = 0; a < 3; ++a) {
+        c[a][k] = points[chosen[k]][a];
+        c[3 + a][k] = normals[chosen[k]][a];
+      }
+  }
+};
+
+/// How many probe points lie on `plane`: onPlane with the same sums in the same order, on SIMD
+/// lanes (300 hypotheses a plane made this loop half of the plane search's time).
+__attribute__((target_clones("avx2", "default")))
+std::size_t countOnPlane(const Probe& probe, const Plane& plane, float tolerance, float min_cos) {
+  const float* x = probe.c[0].data();
+  const float* y = probe.c[1].data();
+  const float* z = probe.c[2].data();
+  const float* nx = probe.c[3].data();
+  const float* ny = probe.c[4].data();
+  const float* nz = probe.c[5].data();
+  const float a = plane.normal.x(), b = plane.normal.y(), c = plane.normal.z(), d = plane.d;
+  std::uint32_t count = 0;
+  for (std::size_t k = 0; k < probe.c[0].size(); ++k) {
+    const bool near = std::abs(a * x[k] + b * y[k] + c * z[k] - d) <= tolerance;
+    const bool aligned = std::abs(a * nx[k] + b * ny[k] + c * nz[k]) >= min_cos;
+    count += static_cast<std::uint32_t>(near & aligned);
+  }
+  return count;
 }
 
 }  // namespace
@@ -66,6 +100,7 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
   const float min_cos = std::cos(params.max_angle);
   Rng rng(params.seed);
   std::vector<std::uint32_t> left, probe, inliers;
+  Probe probe_points;
   for (int round = 0; round < params.max_planes; ++round) {
     left.clear();
     for (std::uint32_t i = 0; i < points.size(); ++i)
@@ -75,13 +110,13 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
     probe.clear();
     const std::size_t step = std::max<std::size_t>(1, left.size() / 1000);
     for (std::size_t k = 0; k < left.size(); k += step) probe.push_back(left[k]);
+    probe_points.assign(points, normals, probe);
     std::size_t best_count = 0;
     Plane best;
     for (int t = 0; t < params.trials; ++t) {
       const std::uint32_t s = left[rng.below(left.size())];
       const Plane hypothesis{normals[s], normals[s].dot(points[s])};
-      std::size_t count = 0;
-      for (const auto i : probe) count += onPlane(points[i], normals[i], hypothesis, params.tolerance, min_cos);
+      const std::size_t count = countOnPlane(probe_points, hypothesis, params.tolerance, min_cos);
       if (count > best_count) {
         best_count = count;
         best = hypothesis;

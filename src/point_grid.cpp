@@ -163,4 +163,13 @@ bool PointGrid::nearest(const Vec3& q, float max_distance, std::uint32_t& index,
   return search(max_distance);
 }
 
+void PointGrid::within(const Vec3& q, float radius, std::vector<std::uint32_t>& out) const {
+  out.clear();
+  if (ids_.empty() || !q.allFinite() || !(radius > 0)) return;
+  const float limit = radius * radius;
+  forEachInBox(boxAround(q, radius), [&](std::uint32_t s) {
+    if ((points_[s] - q).squaredNorm() < limit) out.push_back(ids_[s]);
+  });
+}
+
 }  // namespace binpose

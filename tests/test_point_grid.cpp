@@ -86,6 +86,32 @@ TEST(PointGrid, NearestWithinEqualsBruteForce) {
   EXPECT_GT(missed, 100);
 }
 
+TEST(PointGrid, WithinRadiusEqualsBruteForce) {
+  // Radii on the pixel spacing (points exactly at the radius are out: d^2 < r^2), and radii
+  // several cells wide; queries on, near and far from the points.
+  const Points points = scanLike();
+  for (const float cell : {0.0f, 1.0f, 4.0f}) {
+    const PointGrid grid(points, cell);
+    Rng rng(13);
+    std::vector<std::uint32_t> got;
+    std::size_t total = 0;
+    for (int t = 0; t < 300; ++t) {
+      Vec3 q = points[rng.below(points.size())];
+      if (t % 3 == 1) q += Vec3(float(rng.uniform()), float(rng.uniform()), float(rng.uniform()));
+      if (t % 3 == 2) q += Vec3(0, 0, -30.0f * float(rng.uniform()));
+      const float radius = t % 2 == 0 ? float(1 + t % 4) : 10.0f * float(rng.uniform()) + 0.1f;
+      grid.within(q, radius, got);
+      std::sort(got.begin(), got.end());
+      std::vector<std::uint32_t> truth;
+      for (std::uint32_t i = 0; i < points.size(); ++i)
+        if ((points[i] - q).squaredNorm() < radius * radius) truth.push_back(i);
+      ASSERT_EQ(got, truth) << "cell " << cell << " query " << t << " radius " << radius;
+      total += truth.size();
+    }
+    EXPECT_GT(total, 3000u);  // the queries found something to compare
+  }
+}
+
 TEST(PointGrid, FewOrBadPointsAreHandled) {
   std::uint32_t idx[4];
   float d2[4];

@@ -28,6 +28,9 @@ class PointGrid {
   /// there is none.
   bool nearest(const Vec3& q, float max_distance, std::uint32_t& index, float& sq_dist) const;
 
+  /// Every point closer than `radius` to q (squared distance < radius^2, as nanoflann's radius
+  /// search): indices into the points, in no particular order, into `out` (cleared).
+  void within(const Vec3& q, float radius, std::vector<std::uint32_t>& out) const;
   [[nodiscard]] float cellSize() const { return cell_; }
   [[nodiscard]] std::size_t size() const { return ids_.size(); }
 
