@@ -170,8 +170,17 @@ void Voter::select(std::uint32_t k, std::vector<Correspondence>& out) {
   if (!(top > limit)) return;  // eq. 11: no upper outlier, no candidate
   const auto above = static_cast<std::uint16_t>(limit);  // votes are whole: v > limit <=> v > floor(limit)
   outliers_.clear();
-  for (std::size_t m = 0; m < n; ++m)
-    if (votes_[m] > above) outliers_.push_back(m);
+  constexpr std::size_t kChunk = 32;  // a branch-free test of a chunk (SIMD lanes), then its outliers: few chunks hold one
+  id = 0;
+  for (; id + kChunk <= n; id += kChunk) {
+    bool any = false;
+    for (std::size_t c = 0; c < kChunk; ++c) any |= votes_[id + c] > above;
+    if (!any) continue;
+    for (std::size_t c = id; c < id + kChunk; ++c)
+      if (votes_[c] > above) outliers_.push_back(c);
+  }
+  for (; id < n; ++id)
+    if (votes_[id] > above) outliers_.push_back(id);
   const auto value = [this](std::size_t m) { return std::uint32_t{votes_[m]}; };
   if (keep_ <= 1 || spacing_ <= 0) {
     keepBest(outliers_, keep_, value);
