@@ -156,7 +156,23 @@ ModelDatabase ModelDatabase::build(OrientedModel model, const QuantizationParams
     forChunk(c, [&](std::uint32_t key, std::size_t i) { db.entries_[cursor[key]++] = static_cast<PointId>(i); });
   });
   db.model_ = std::move(model);
+  db.indexDenseLists();
   return db;
+}
+
+void ModelDatabase::indexDenseLists() {
+  dense_words_ = (model_.points.size() + 63) / 64;
+  dense_slot_.assign(offsets_.empty() ? 0 : offsets_.size() - 1, kNoSlot);
+  dense_bits_.clear();
+  std::uint32_t slots = 0;
+  for (std::size_t key = 0; key < dense_slot_.size(); ++key) {
+    const auto ids = lookup(static_cast<std::uint32_t>(key));
+    if (ids.size() < denseListSize()) continue;
+    dense_slot_[key] = slots++;
+    dense_bits_.resize(std::size_t{slots} * dense_words_, 0);
+    std::uint64_t* bits = dense_bits_.data() + std::size_t{dense_slot_[key]} * dense_words_;
+    for (const PointId id : ids) bits[id / 64] |= 1ull << (id % 64);
+  }
 }
 
 DatabaseStats ModelDatabase::stats() const {
@@ -257,6 +273,7 @@ ModelDatabase ModelDatabase::load(const std::string& path) {
     detail::fail(path, "database offsets are inconsistent");
   if (std::any_of(db.entries_.begin(), db.entries_.end(), [&](PointId id) { return id >= n_points; }))
     detail::fail(path, "database refers to a model point that does not exist");
+  db.indexDenseLists();
   return db;
 }
 

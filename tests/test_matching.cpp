@@ -312,6 +312,41 @@ TEST(Voting, ParallelVoterGivesTheSequentialPairs) {
   EXPECT_EQ(sequential, parallel);
 }
 
+TEST(Voting, LongListsHeldAsBitsetsHoldTheSamePoints) {
+  const ModelDatabase& db = lDatabase();
+  std::size_t dense = 0;
+  for (std::uint32_t key = 0; key < db.keySpace().size(); ++key) {
+    const auto ids = db.lookup(key);
+    const auto bits = db.denseBits(key);
+    ASSERT_EQ(bits.empty(), ids.size() < db.denseListSize()) << key;
+    if (bits.empty()) continue;
+    ++dense;
+    std::vector<std::uint32_t> from_bits;
+    for (std::uint32_t m = 0; m < 64 * bits.size(); ++m)
+      if ((bits[m / 64] >> (m % 64)) & 1) from_bits.push_back(m);
+    ASSERT_EQ(from_bits, std::vector<std::uint32_t>(ids.begin(), ids.end())) << key;
+  }
+  EXPECT_GT(dense, 10u);  // the flat faces' features: lists of an eighth of the points and more
+}
+
+TEST(Voting, BitsetCountingGivesTheSameCandidates) {
+  // The whole part as one group (500 partners: a key can come up more than 255 times, and the
+  // byte counters fill up and are flushed), with the fast preset's candidate rule.
+  Points points, normals;
+  Rng rng(21);
+  movedModel(test::randomPose(rng, Vec3(0, 0, 400)), points, normals);
+  std::vector<std::uint32_t> group(points.size());
+  std::iota(group.begin(), group.end(), 0u);
+  Voter by_bits(lDatabase(), 12, UINT32_MAX, 2.7f), by_points(lDatabase(), 12, UINT32_MAX, 2.7f);
+  by_points.useBitsets(false);
+  if (!by_bits.usesBitsets()) GTEST_SKIP() << "no AVX2 on this CPU: every list is counted point by point";
+  std::vector<Correspondence> a, b;
+  by_bits.vote(points, normals, group, a);
+  by_points.vote(points, normals, group, b);
+  ASSERT_GT(a.size(), group.size());
+  EXPECT_EQ(a, b);
+}
+
 TEST(Voting, CandidateSpacingKeepsTheBestAndSpreadsTheRest) {
   Points points, normals;
   Rng rng(9);

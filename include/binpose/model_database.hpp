@@ -6,6 +6,7 @@
 #include <binpose/features.hpp>
 #include <binpose/model.hpp>
 
+#include <algorithm>
 #include <cstdint>
 #include <span>
 #include <string>
@@ -51,6 +52,15 @@ class ModelDatabase {
     if (key >= keys_.size()) return {};
     return {entries_.data() + offsets_[key], entries_.data() + offsets_[key + 1]};
   }
+  /// The same model points as lookup(key), as a bitset of model().points.size() bits (64 to a
+  /// word), for a key listing at least denseListSize() points; empty for a shorter list.
+  [[nodiscard]] std::span<const std::uint64_t> denseBits(std::uint32_t key) const {
+    if (key >= dense_slot_.size() || dense_slot_[key] == kNoSlot) return {};
+    return {dense_bits_.data() + std::size_t{dense_slot_[key]} * dense_words_, dense_words_};
+  }
+  /// Lists of at least this many points are also kept as bitsets (an eighth of the points:
+  /// longer ones are counted faster by bitset than point by point).
+  [[nodiscard]] std::size_t denseListSize() const { return std::max<std::size_t>(1, model_.points.size() / 8); }
   [[nodiscard]] const KeySpace& keySpace() const { return keys_; }
   [[nodiscard]] const OrientedModel& model() const { return model_; }
   [[nodiscard]] std::uint64_t entryCount() const { return entries_.size(); }
@@ -61,6 +71,12 @@ class ModelDatabase {
   KeySpace keys_;
   std::vector<std::uint32_t> offsets_;  ///< keys_.size() + 1 offsets into entries_
   std::vector<PointId> entries_;
+  /// Bitsets of the long lists (derived from the lists when built or loaded; not in the file).
+  void indexDenseLists();
+  static constexpr std::uint32_t kNoSlot = UINT32_MAX;
+  std::vector<std::uint32_t> dense_slot_;  ///< per key: its bitset's place, or kNoSlot
+  std::vector<std::uint64_t> dense_bits_;
+  std::size_t dense_words_ = 0;
 };
 
 }  // namespace binpose

@@ -54,6 +54,10 @@ class Voter {
   /// each point voting with the whole group (the thesis's sub-group voting).
   void vote(const Points& points, const Points& normals, std::span<const std::uint32_t> group,
             std::vector<Correspondence>& out);
+  /// Long lists counted by their bitsets (on by default where the CPU has AVX2), or every list
+  /// point by point (off): the same votes either way.
+  void useBitsets(bool on);
+  [[nodiscard]] bool usesBitsets() const { return bitsets_; }
   /// Appends to `out` the candidate pairs of scene point k voting with the features to `partners`.
   void votePoint(const Points& points, const Points& normals, std::uint32_t k, std::span<const std::uint32_t> partners,
                  std::vector<Correspondence>& out);
@@ -61,6 +65,11 @@ class Voter {
  private:
   /// Adds `times` to the accumulator of each model point in `ids`.
   void countList(std::span<const ModelDatabase::PointId> ids, std::uint16_t times);
+  /// The same for a long list given as a bitset (ModelDatabase::denseBits), into byte-sized
+  /// counters (dense_), added into votes_ before they could overflow. AVX2 only.
+  void countDense(std::span<const std::uint64_t> bits, std::uint16_t times);
+  /// votes_ += dense_, dense_ cleared.
+  void flushDense();
   /// Appends scene point k's candidates, the upper outliers of the accumulator (eq. 10-12).
   void select(std::uint32_t k, std::vector<Correspondence>& out);
 
@@ -71,10 +80,14 @@ class Voter {
   std::vector<std::uint32_t> keys_;       ///< the keys of one point's features
   struct List {
     std::span<const ModelDatabase::PointId> ids;
+    std::span<const std::uint64_t> bits;  ///< the same as a bitset, for a long list (else empty)
     std::uint16_t times;  ///< features of the point with this key
   };
   std::vector<List> lists_;  ///< the model point lists of those keys
   std::vector<std::uint16_t> votes_;      ///< A_k, one counter per model point
+  std::vector<std::uint8_t> dense_;       ///< the long lists' votes not yet in votes_, a byte per model point
+  std::uint32_t dense_sum_ = 0;           ///< the most any byte of dense_ can hold now
+  bool bitsets_;                          ///< long lists counted by bitset (where the CPU has AVX2)
   std::vector<std::uint32_t> histogram_;  ///< the accumulator's histogram (four side by side)
   std::vector<std::size_t> outliers_;     ///< model points whose votes are upper outliers
 };
