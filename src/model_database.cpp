@@ -163,15 +163,14 @@ ModelDatabase ModelDatabase::build(OrientedModel model, const QuantizationParams
 void ModelDatabase::indexDenseLists() {
   dense_words_ = (model_.points.size() + 63) / 64;
   dense_slot_.assign(offsets_.empty() ? 0 : offsets_.size() - 1, kNoSlot);
-  dense_bits_.clear();
   std::uint32_t slots = 0;
+  for (std::size_t key = 0; key < dense_slot_.size(); ++key)
+    if (lookup(static_cast<std::uint32_t>(key)).size() >= denseListSize()) dense_slot_[key] = slots++;
+  dense_bits_.assign(std::size_t{slots} * dense_words_, 0);
   for (std::size_t key = 0; key < dense_slot_.size(); ++key) {
-    const auto ids = lookup(static_cast<std::uint32_t>(key));
-    if (ids.size() < denseListSize()) continue;
-    dense_slot_[key] = slots++;
-    dense_bits_.resize(std::size_t{slots} * dense_words_, 0);
+    if (dense_slot_[key] == kNoSlot) continue;
     std::uint64_t* bits = dense_bits_.data() + std::size_t{dense_slot_[key]} * dense_words_;
-    for (const PointId id : ids) bits[id / 64] |= 1ull << (id % 64);
+    for (const PointId id : lookup(static_cast<std::uint32_t>(key))) bits[id / 64] |= 1ull << (id % 64);
   }
 }
 
