@@ -298,13 +298,24 @@ void movedModel(const Pose& pose, Points& points, Points& normals) {
     normals.push_back(pose.linear() * m.normals[i]);
   }
 }
+
+/// The part moved by a random pose (from `seed`) to 400 mm ahead, all its points one group.
+struct WholePart {
+  Points points, normals;
+  std::vector<std::uint32_t> group;
+};
+WholePart wholePart(std::uint64_t seed) {
+  WholePart part;
+  Rng rng(seed);
+  movedModel(test::randomPose(rng, Vec3(0, 0, 400)), part.points, part.normals);
+  part.group.resize(part.points.size());
+  std::iota(part.group.begin(), part.group.end(), 0u);
+  return part;
+}
 }  // namespace
 
 TEST(Voting, ParallelVoterGivesTheSequentialPairs) {
-  Points points, normals;
-  movedModel(test::randomPose(*std::make_unique<Rng>(3), Vec3(0, 0, 400)), points, normals);
-  std::vector<std::uint32_t> group(points.size());
-  std::iota(group.begin(), group.end(), 0u);
+  const auto [points, normals, group] = wholePart(3);
   std::vector<Correspondence> sequential, parallel;
   Voter(lDatabase(), 2).vote(points, normals, group, sequential);
   ParallelVoter(lDatabase(), 2).vote(points, normals, group, parallel);
@@ -332,11 +343,7 @@ TEST(Voting, LongListsHeldAsBitsetsHoldTheSamePoints) {
 TEST(Voting, BitsetCountingGivesTheSameCandidates) {
   // The whole part as one group (500 partners: a key can come up more than 255 times, and the
   // byte counters fill up and are flushed), with the fast preset's candidate rule.
-  Points points, normals;
-  Rng rng(21);
-  movedModel(test::randomPose(rng, Vec3(0, 0, 400)), points, normals);
-  std::vector<std::uint32_t> group(points.size());
-  std::iota(group.begin(), group.end(), 0u);
+  const auto [points, normals, group] = wholePart(21);
   Voter by_bits(lDatabase(), 12, UINT32_MAX, 2.7f), by_points(lDatabase(), 12, UINT32_MAX, 2.7f);
   by_points.useBitsets(false);
   if (!by_bits.usesBitsets()) GTEST_SKIP() << "no AVX2 on this CPU: every list is counted point by point";
@@ -348,11 +355,7 @@ TEST(Voting, BitsetCountingGivesTheSameCandidates) {
 }
 
 TEST(Voting, CandidateSpacingKeepsTheBestAndSpreadsTheRest) {
-  Points points, normals;
-  Rng rng(9);
-  movedModel(test::randomPose(rng, Vec3(0, 0, 400)), points, normals);
-  std::vector<std::uint32_t> group(points.size());
-  std::iota(group.begin(), group.end(), 0u);
+  const auto [points, normals, group] = wholePart(9);
   constexpr float kSpacing = 5.0f;
   const Points& model = lDatabase().model().points;
   Voter plain(lDatabase(), 6), spread(lDatabase(), 6, UINT32_MAX, kSpacing);
