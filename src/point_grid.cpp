@@ -124,6 +124,16 @@ PointGrid::Box PointGrid::boxAround(const Vec3& q, float radius) const {
           clampCell(a.y() + r, ny_), clampCell(a.z() - r, nz_), clampCell(a.z() + r, nz_)};
 }
 
+float PointGrid::coveredDistance(const Vec3& q, const Box& b) const {
+  // A face on the grid's border bounds nothing: its cells also hold every point beyond it.
+  const auto side = [&](int axis, int first, int last, int n) {
+    const float low = first == 0 ? INFINITY : q[axis] - (lo_[axis] + float(first) * cell_);
+    const float high = last == n - 1 ? INFINITY : lo_[axis] + float(last + 1) * cell_ - q[axis];
+    return std::min(low, high);
+  };
+  return std::max(0.0f, std::min({side(0, b.x0, b.x1, nx_), side(1, b.y0, b.y1, ny_), side(2, b.z0, b.z1, nz_)}));
+}
+
 template <class Visit>
 void PointGrid::forEachInBox(const Box& b, Visit&& visit) const {
   for (int z = b.z0; z <= b.z1; ++z)
@@ -136,14 +146,14 @@ void PointGrid::forEachInBox(const Box& b, Visit&& visit) const {
 std::size_t PointGrid::knn(const Vec3& q, std::size_t k, std::uint32_t* indices, float* sq_dists) const {
   if (k == 0 || ids_.empty() || !q.allFinite()) return 0;
   k = std::min(k, ids_.size());
-  // Boxes of growing radius; done once the k-th nearest lies within the box's radius (every
-  // point that close lies inside the box), or the box holds every cell.
+  // Boxes of growing radius; done once the k-th nearest lies no farther than the box's nearest
+  // face (every point that close lies inside the box), or the box holds every cell.
   for (float radius = cell_;; radius *= 2.0f) {
     Best best{k, 0, indices, sq_dists};
     const Box b = boxAround(q, radius);
     forEachInBox(b, [&](std::uint32_t s) { best.offer((points_[s] - q).squaredNorm(), ids_[s]); });
-    const bool all = b.x0 == 0 && b.y0 == 0 && b.z0 == 0 && b.x1 == nx_ - 1 && b.y1 == ny_ - 1 && b.z1 == nz_ - 1;
-    if ((best.count == k && sq_dists[k - 1] <= radius * radius) || all) return best.count;
+    const float covered = coveredDistance(q, b);
+    if ((best.count == k && sq_dists[k - 1] <= covered * covered) || covered == INFINITY) return best.count;
   }
 }
 
