@@ -144,7 +144,7 @@ void BM_VoteSubGroup(benchmark::State& state) {
 BENCHMARK_TEMPLATE(BM_VoteSubGroup, Voter)->Unit(benchmark::kMillisecond);
 BENCHMARK_TEMPLATE(BM_VoteSubGroup, ParallelVoter)->Unit(benchmark::kMillisecond)->UseRealTime();
 
-void BM_LocalVotes(benchmark::State& state) {  // the fast preset: every sampled point votes once
+void BM_LocalVotes(benchmark::State& state) {  // the fast preset's local votes, every sampled point voting once
   const Fixture& f = fixture();
   const DetectionParams p = scaledToModel(presetByName("fast"), f.model.diameter);
   std::vector<std::uint32_t> all(f.scene.points.size());
