@@ -10,7 +10,7 @@ namespace binpose {
 namespace {
 
 /// The k best (squared distance, index) pairs seen, best first: an insertion into a short array
-/// (k is 6 for normals, 2 for a spacing).
+/// (k is k_normals, 6 or 8, for normals; 2 for a spacing).
 struct Best {
   std::size_t k, count = 0;
   std::uint32_t* idx;
