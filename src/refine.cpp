@@ -5,7 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
-#include <unordered_map>
+#include <optional>
 #include <tbb/parallel_for.h>
 
 namespace binpose {
@@ -24,9 +24,41 @@ struct NormalEquations {
   int pairs = 0;
 };
 
-std::int64_t cellOf(float u, float v, float size) {
-  return (static_cast<std::int64_t>(std::floor(u / size)) << 32) ^ (static_cast<std::int64_t>(std::floor(v / size)) & 0xFFFFFFFF);
-}
+/// The nearest range seen in each image cell of a posed model (its own z-buffer): a dense
+/// array over the cells its points cover, so a lookup is one load.
+class ZBuffer {
+ public:
+  /// Cells of side `size` (in the image's u-v units) over [u0, u1] x [v0, v1]; wider when that
+  /// would take more than kMaxCells.
+  ZBuffer(float u0, float u1, float v0, float v1, float size) : size_(size) {
+    for (;;) {  // cells at multiples of size_, as they would lie on an unbounded image
+      x0_ = cellAt(u0);
+      y0_ = cellAt(v0);
+      width_ = cellAt(u1) - x0_ + 1;
+      height_ = cellAt(v1) - y0_ + 1;
+      if (width_ * height_ <= kMaxCells) break;
+      size_ *= 2;
+    }
+    nearest_.assign(static_cast<std::size_t>(width_ * height_), INFINITY);
+  }
+  void add(float u, float v, float range) {
+    float& at = nearest_[index(u, v)];
+    at = std::min(at, range);
+  }
+  [[nodiscard]] float at(float u, float v) const { return nearest_[index(u, v)]; }
+
+ private:
+  static constexpr long kMaxCells = 1 << 20;
+  [[nodiscard]] long cellAt(float u) const { return static_cast<long>(std::floor(u / size_)); }
+  [[nodiscard]] std::size_t index(float u, float v) const {
+    const long x = std::clamp(cellAt(u) - x0_, 0L, width_ - 1);
+    const long y = std::clamp(cellAt(v) - y0_, 0L, height_ - 1);
+    return static_cast<std::size_t>(y * width_ + x);
+  }
+  float size_;
+  long x0_ = 0, y0_ = 0, width_ = 0, height_ = 0;
+  std::vector<float> nearest_;
+};
 
 /// ICP stops once a step moves no model point more than this, mm.
 constexpr double kConverged = 1e-3;
@@ -195,16 +227,16 @@ Evidence SceneEvidence::evaluate(const Pose& pose, const Points& model_points, c
   }
   // The model's own z-buffer on cells of two sample spacings: a facing point with the model's
   // surface clearly in front of it is hidden by the part itself and is not expected in the scan.
-  std::unordered_map<std::int64_t, float> front;
-  float cell = 0;
+  std::optional<ZBuffer> front;
   if (!facing.empty() && model_spacing > 0) {
-    float mean_range = 0;
-    for (const Facing& f : facing) mean_range += f.range;
-    cell = 2.0f * model_spacing / (mean_range / static_cast<float>(facing.size()));
+    float mean_range = 0, u0 = INFINITY, u1 = -INFINITY, v0 = INFINITY, v1 = -INFINITY;
     for (const Facing& f : facing) {
-      const auto [it, inserted] = front.try_emplace(cellOf(f.u, f.v, cell), f.range);
-      if (!inserted) it->second = std::min(it->second, f.range);
+      mean_range += f.range;
+      u0 = std::min(u0, f.u); u1 = std::max(u1, f.u);
+      v0 = std::min(v0, f.v); v1 = std::max(v1, f.v);
     }
+    front.emplace(u0, u1, v0, v1, 2.0f * model_spacing / (mean_range / static_cast<float>(facing.size())));
+    for (const Facing& f : facing) front->add(f.u, f.v, f.range);
   }
   // Each facing point's verdict, in parallel (the tree queries), then counted in order.
   enum Verdict : std::uint8_t { kHidden, kSupported, kContradicted, kUnknown };
@@ -214,7 +246,7 @@ Evidence SceneEvidence::evaluate(const Pose& pose, const Points& model_points, c
     for (std::size_t i = k * kChunk; i < std::min(facing.size(), (k + 1) * kChunk); ++i) {
       const Facing& f = facing[i];
       verdict[i] = kUnknown;
-      if (cell > 0 && front.at(cellOf(f.u, f.v, cell)) < f.range - 2 * model_spacing) {
+      if (front && front->at(f.u, f.v) < f.range - 2 * model_spacing) {
         verdict[i] = kHidden;  // self-occluded
         continue;
       }
