@@ -63,6 +63,18 @@ class ZBuffer {
 /// ICP stops once a step moves no model point more than this, mm.
 constexpr double kConverged = 1e-3;
 
+/// Coarse to fine: ICP first steps with every kCoarseStride-th model point, then with all of
+/// them once a coarse step moves no point more than kCoarseConverged mm, or no less than the
+/// step before (the few points' pairs flip back and forth), or after kCoarseSteps steps (or
+/// too few pairs are left). Most of the way is covered at a quarter of the queries.
+constexpr std::size_t kCoarseStride = 4;
+constexpr double kCoarseConverged = 0.05;
+constexpr int kCoarseSteps = 6;
+
+/// ICP also stops when a step below this, mm, moves the pose no less than the step before: the
+/// pairs then flip back and forth between two sets (a limit cycle), and the pose with them.
+constexpr double kStalled = 0.01;
+
 /// Directions of the 6-dof step whose curvature is below this share of the largest one are
 /// left alone (degeneracy-aware ICP, Zhang et al. 2016): the spin of a body of revolution, the
 /// slide of a flat face. Solving for them fits noise, and the pose drifts there from step to step.
@@ -107,16 +119,20 @@ Pose refinePose(const Pose& pose, const Points& model_points, const Points& mode
   length = std::max(length, 1e-3);
   Pose current = pose;
   float gate = params.max_distance;
-  const std::size_t chunks = (model_points.size() + kChunk - 1) / kChunk;
-  std::vector<NormalEquations> parts(chunks);
+  std::vector<NormalEquations> parts((model_points.size() + kChunk - 1) / kChunk);
+  std::size_t stride = model_points.size() >= 64 * kCoarseStride ? kCoarseStride : 1;
+  double last_moved = INFINITY;  // the last step's, in the current stage
   for (int it = 0; it < params.iterations; ++it) {
     // Linearised about the posed model's centre: a part's free motions (the spin of a body of
     // revolution) then stay pure rotations about its own axis instead of leaking into t.
     const Vec3 c = current * model_centre;
+    const std::size_t used = (model_points.size() + stride - 1) / stride;  // points i = s * stride
+    const std::size_t chunks = (used + kChunk - 1) / kChunk;
     tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t k) {
       NormalEquations& e = parts[k];
       e = NormalEquations{};
-      for (std::size_t i = k * kChunk; i < std::min(model_points.size(), (k + 1) * kChunk); ++i) {
+      for (std::size_t s = k * kChunk; s < std::min(used, (k + 1) * kChunk); ++s) {
+        const std::size_t i = s * stride;
         const Vec3 p = current * model_points[i];
         const Vec3 n = current.linear() * model_normals[i];
         if (!facesSensor(p, n, params.viewpoint)) continue;
@@ -133,12 +149,16 @@ Pose refinePose(const Pose& pose, const Points& model_points, const Points& mode
       }
     });
     NormalEquations sum;  // the chunks added in order
-    for (const NormalEquations& e : parts) {
-      sum.A += e.A;
-      sum.b += e.b;
-      sum.pairs += e.pairs;
+    for (std::size_t k = 0; k < chunks; ++k) {
+      sum.A += parts[k].A;
+      sum.b += parts[k].b;
+      sum.pairs += parts[k].pairs;
     }
-    if (sum.pairs < 12) break;
+    if (sum.pairs < 12) {
+      if (stride == 1) break;
+      stride = 1;  // too few pairs among the coarse points: on with all of them
+      continue;
+    }
     const Eigen::Matrix<double, 6, 1> x = constrainedStep(sum.A, sum.b, length);
     if (!x.allFinite()) break;
     const Eigen::Vector3d omega = x.head<3>();
@@ -150,8 +170,20 @@ Pose refinePose(const Pose& pose, const Points& model_points, const Points& mode
     current = step * current;
     gate = std::max(params.min_distance, gate * 0.7f);
     // Converged when no model point moves more than kConverged (the step's rotation at the
-    // part's reach plus its translation).
-    if (omega.norm() * length + x.tail<3>().norm() < kConverged) break;
+    // part's reach plus its translation), or stalled (kStalled); the coarse points hand over
+    // at kCoarseConverged.
+    const double moved = omega.norm() * length + x.tail<3>().norm();
+    if (stride > 1) {
+      if (moved < kCoarseConverged || moved >= last_moved || it + 1 >= kCoarseSteps) {
+        stride = 1;
+        last_moved = INFINITY;
+      } else {
+        last_moved = moved;
+      }
+      continue;
+    }
+    if (moved < kConverged || (moved < kStalled && moved >= last_moved)) break;
+    last_moved = moved;
   }
   return current;
 }
