@@ -243,25 +243,32 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   std::vector<Plane> planes;  // the bin's
   if (p.remove_planes) scene = withoutPlanes(std::move(scene), p, planes);
   result.plane_points = result.sampled_points - scene.points.size();
-  const SceneEvidence evidence(scan.points, scan_grid, p.viewpoint, planes, std::min(p.verify_tolerance, p.plane_tolerance));
-  const auto groups = makeSubGroups(scene.points, p.eta, p.r, static_cast<std::size_t>(p.C_n));
-  result.subgroups = groups.size();
-  result.timing.preprocess_ms = msSince(t0);
-
+  // The score's view of the scan, the sub-groups and the local voters' setup: side by side.
+  std::optional<SceneEvidence> evidence_slot;
+  std::vector<std::vector<std::uint32_t>> groups;
   const auto max_list = static_cast<std::uint32_t>(p.max_key_share * static_cast<float>(model.size()));
   // Local votes (each point votes once, when a sub-group first needs it; see NeighbourhoodVoter).
   std::unique_ptr<NeighbourhoodVoter> local;
   std::vector<char> may_vote;  // the reference points of voter_spacing (all without it)
-  if (p.local_votes) {
-    std::vector<std::uint32_t> partners;
-    if (p.partner_spacing > 0) partners = voxelSubsample(scene.points, p.partner_spacing);
-    local = std::make_unique<NeighbourhoodVoter>(db_, scene.points, scene.normals, p.vote_radius, p.candidates_per_point,
-                                                 max_list, partners, p.candidate_spacing);
-    may_vote.assign(scene.points.size(), p.voter_spacing > 0 ? 0 : 1);
-    if (p.voter_spacing > 0)
-      for (const auto i : voxelSubsample(scene.points, p.voter_spacing)) may_vote[i] = 1;
-  }
-  const double vote_setup_ms = msSince(t0) - result.timing.preprocess_ms;
+  double vote_setup_ms = 0;
+  tbb::parallel_invoke(
+      [&] { evidence_slot.emplace(scan.points, scan_grid, p.viewpoint, planes, std::min(p.verify_tolerance, p.plane_tolerance)); },
+      [&] { groups = makeSubGroups(scene.points, p.eta, p.r, static_cast<std::size_t>(p.C_n)); },
+      [&] {
+        if (!p.local_votes) return;
+        const auto t_setup = Clock::now();
+        std::vector<std::uint32_t> partners;
+        if (p.partner_spacing > 0) partners = voxelSubsample(scene.points, p.partner_spacing);
+        local = std::make_unique<NeighbourhoodVoter>(db_, scene.points, scene.normals, p.vote_radius,
+                                                     p.candidates_per_point, max_list, partners, p.candidate_spacing);
+        may_vote.assign(scene.points.size(), p.voter_spacing > 0 ? 0 : 1);
+        if (p.voter_spacing > 0)
+          for (const auto i : voxelSubsample(scene.points, p.voter_spacing)) may_vote[i] = 1;
+        vote_setup_ms = msSince(t_setup);
+      });
+  const SceneEvidence& evidence = *evidence_slot;
+  result.subgroups = groups.size();
+  result.timing.preprocess_ms = msSince(t0) - vote_setup_ms;  // the voters' setup counts as voting
   double vote_ms = vote_setup_ms;  // the setup, then the local votes of each batch
 
   const Matcher matcher{db_, p, icp_model_, scene, scan, scan_grid, evidence, local.get()};
