@@ -68,6 +68,7 @@ class Detector {
   OrientedPoints icp_model_;  ///< the model points ICP pairs up (icp_model_points of them)
   Vec3 model_centroid_;
   float model_radius_ = 0;  ///< largest distance of a model point from the centroid
+  Vec3 model_lo_, model_hi_;  ///< the model points' bounding box
 };
 
 }  // namespace binpose
