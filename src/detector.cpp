@@ -247,11 +247,14 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   const PointGrid& scan_grid = *grid;
   PreparedScene scene = prepareScene(scan.points, scan_grid, chosen, p);
   result.sampled_points = scene.points.size();
+  // The bin's planes and the score's view of the scan side by side, then the sub-groups and the
+  // local voters' setup.
   std::vector<Plane> planes;  // the bin's
-  if (p.remove_planes) scene = withoutPlanes(std::move(scene), p, planes);
-  result.plane_points = result.sampled_points - scene.points.size();
-  // The score's view of the scan, the sub-groups and the local voters' setup: side by side.
   std::optional<SceneEvidence> evidence_slot;
+  tbb::parallel_invoke([&] { if (p.remove_planes) scene = withoutPlanes(std::move(scene), p, planes); },
+                       [&] { evidence_slot.emplace(scan.points, scan_grid, p.viewpoint); });
+  evidence_slot->setBackground(planes, std::min(p.verify_tolerance, p.plane_tolerance));
+  result.plane_points = result.sampled_points - scene.points.size();
   std::vector<std::vector<std::uint32_t>> groups;
   const auto max_list = static_cast<std::uint32_t>(p.max_key_share * static_cast<float>(model.size()));
   // Local votes (each point votes once, when a sub-group first needs it; see NeighbourhoodVoter).
@@ -259,7 +262,6 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   std::vector<char> may_vote;  // the reference points of voter_spacing (all without it)
   double vote_setup_ms = 0;
   tbb::parallel_invoke(
-      [&] { evidence_slot.emplace(scan.points, scan_grid, p.viewpoint, planes, std::min(p.verify_tolerance, p.plane_tolerance)); },
       [&] { groups = makeSubGroups(scene.points, p.eta, p.r, static_cast<std::size_t>(p.C_n)); },
       [&] {
         if (!p.local_votes) return;

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <fmt/format.h>
 #include <numeric>
+#include <tbb/parallel_for.h>
 
 namespace binpose {
 namespace {
@@ -130,7 +131,9 @@ std::vector<std::vector<std::uint32_t>> makeSubGroups(const Points& points, floa
   for (std::size_t i = 0; i < points.size(); ++i)
     cells[i] = {cellKey(points[i] - lo, r, 2), static_cast<std::uint32_t>(i)};
   std::sort(cells.begin(), cells.end());
-  for (long gx = 0; gx < nx; ++gx)
+  // Each column of nodes on its own (in parallel), joined in column order.
+  std::vector<std::vector<std::vector<std::uint32_t>>> columns(static_cast<std::size_t>(nx));
+  tbb::parallel_for(long{0}, nx, [&](long gx) {
     for (long gy = 0; gy < ny; ++gy) {
       const Vec3 node = lo + Vec3(float(gx) * eta, float(gy) * eta, 0.0f);
       std::vector<std::uint32_t> members;
@@ -148,8 +151,11 @@ std::vector<std::vector<std::uint32_t>> makeSubGroups(const Points& points, floa
         }
       if (members.size() < min_size) continue;
       std::sort(members.begin(), members.end());
-      groups.push_back(std::move(members));
+      columns[static_cast<std::size_t>(gx)].push_back(std::move(members));
     }
+  });
+  for (auto& column : columns)
+    for (auto& g : column) groups.push_back(std::move(g));
   if (groups.empty()) return groups;
   double mean = 0;
   for (const auto& g : groups) mean += static_cast<double>(g.size());

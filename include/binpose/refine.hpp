@@ -53,6 +53,12 @@ class SceneEvidence {
   /// L-shaped part fits the corner of floor and wall and scores as if it were there.
   SceneEvidence(const Points& scan, const PointGrid& grid, const Vec3& viewpoint, std::vector<Plane> background = {},
                 float background_tolerance = 0);
+  /// Replaces the bin's planes (as the constructor's `background`): the planes may be found
+  /// while the rest is built.
+  void setBackground(std::vector<Plane> background, float background_tolerance) {
+    background_ = std::move(background);
+    background_tolerance_ = background_tolerance;
+  }
   /// `model_spacing`: the model's sample spacing, mm, for its self-occlusion test (0: none).
   /// The scan points that support the pose are appended to `support` when it is given.
   [[nodiscard]] Evidence evaluate(const Pose& pose, const Points& model_points, const Points& model_normals,
