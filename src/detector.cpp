@@ -191,22 +191,24 @@ Detector::Detector(const ModelDatabase& db, const DetectionParams& params)
   bounds(m, model_lo_, model_hi_);
 }
 
+bool Detector::nearModel(const Vec3& x, float distance) const {
+  // Most points of a neighbouring part's pose, or of the scene around a found part, lie far
+  // outside the model's box: no tree query for them.
+  if ((x.array() < model_lo_.array() - distance).any() || (x.array() > model_hi_.array() + distance).any()) return false;
+  std::uint32_t j;
+  float d2;
+  return model_tree_.nearest(x, j, d2) && d2 <= distance * distance;
+}
+
 bool Detector::mostlyOverlaps(const Pose& a, const Pose& b) const {
   if ((a * model_centroid_ - b * model_centroid_).norm() > 2 * model_radius_) return false;
   const Points& model = icp_model_.points;  // an even share: the same fraction as all points
   const Pose b_from_a = b.inverse() * a;
   const float near_distance = 0.1f * db_.model().diameter;  // the usual correctness radius (ADD < 0.1 d)
   const std::size_t half = model.size() / 2;
-  // A point farther than near_distance outside the model's box is far from every model point:
-  // no tree query needed (most points of a neighbouring part's pose).
-  const Vec3 lo = model_lo_ - Vec3::Constant(near_distance), hi = model_hi_ + Vec3::Constant(near_distance);
   std::size_t near = 0, far = 0;
   for (const Vec3& m : model) {  // stops as soon as the answer is known
-    const Vec3 x = b_from_a * m;
-    std::uint32_t j;
-    float d2;
-    const bool inside = (x.array() >= lo.array()).all() && (x.array() <= hi.array()).all();
-    if (inside && model_tree_.nearest(x, j, d2) && d2 <= near_distance * near_distance) {
+    if (nearModel(b_from_a * m, near_distance)) {
       if (++near > half) return true;
     } else if (++far >= model.size() - half) {
       return false;
@@ -311,14 +313,9 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
     const Pose inverse = det.pose.inverse();
     const Vec3 centre = det.pose * model_centroid_;
     const float reach = model_radius_ + p.sigma_dist;
-    const Vec3 lo = model_lo_ - Vec3::Constant(p.sigma_dist), hi = model_hi_ + Vec3::Constant(p.sigma_dist);
     for (std::size_t i = 0; i < scene.points.size(); ++i) {
       if (removed[i] || (scene.points[i] - centre).squaredNorm() > reach * reach) continue;
-      const Vec3 x = inverse * scene.points[i];  // in the model's frame: beyond its box by sigma_dist, far from it
-      if ((x.array() < lo.array()).any() || (x.array() > hi.array()).any()) continue;
-      std::uint32_t j;
-      float d2;
-      if (model_tree_.nearest(x, j, d2) && d2 <= p.sigma_dist * p.sigma_dist) removed[i] = 1;
+      if (nearModel(inverse * scene.points[i], p.sigma_dist)) removed[i] = 1;
     }
   };
 

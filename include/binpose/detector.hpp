@@ -57,6 +57,9 @@ class Detector {
   /// True when over half of the model's points (the ICP share of them), posed by `a`, lie
   /// within 0.1 diameter of the model posed by `b`.
   [[nodiscard]] bool mostlyOverlaps(const Pose& a, const Pose& b) const;
+  /// True when x (in the model's frame) lies within `distance` of a model point. A point that
+  /// far outside the model's bounding box is answered without a tree query.
+  [[nodiscard]] bool nearModel(const Vec3& x, float distance) const;
   /// Best first, keeps a detection unless it is another pose of an object already kept: over a
   /// quarter of its supporting scan points are claimed (each scan point belongs to one object),
   /// or its model mostly overlaps a kept one's (a near-symmetric flip, say).
