@@ -90,7 +90,8 @@ DetectionParams defaultPreset();
 /// binpose's defaults, but each scene point votes once (local_votes), only one point per 5 mm
 /// cube votes (voter_spacing), with partners one per 8 mm cube (partner_spacing), and keeps its
 /// 12 best model points at least 2.7 mm apart (candidate_spacing); cliques of C_n = 6 are
-/// accepted, and normals fit k = 8 neighbours (the measurements behind each: params.cpp).
+/// accepted, normals fit k = 8 neighbours, and a detection scoring 0.6 removes its points
+/// (removal_score; the measurements behind each: params.cpp).
 DetectionParams fastPreset();
 /// A preset by name: "thesis", "default" or "fast".
 DetectionParams presetByName(const std::string& name);
