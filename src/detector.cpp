@@ -255,7 +255,7 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   std::optional<SceneEvidence> evidence_slot;
   tbb::parallel_invoke([&] { if (p.remove_planes) scene = withoutPlanes(std::move(scene), p, planes); },
                        [&] { evidence_slot.emplace(scan.points, scan_grid, p.viewpoint); });
-  evidence_slot->setBackground(planes, std::min(p.verify_tolerance, p.plane_tolerance));
+  evidence_slot->setBackground(std::move(planes), std::min(p.verify_tolerance, p.plane_tolerance));
   result.plane_points = result.sampled_points - scene.points.size();
   std::vector<std::vector<std::uint32_t>> groups;
   const auto max_list = static_cast<std::uint32_t>(p.max_key_share * static_cast<float>(model.size()));

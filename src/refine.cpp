@@ -188,10 +188,8 @@ Pose refinePose(const Pose& pose, const Points& model_points, const Points& mode
   return current;
 }
 
-SceneEvidence::SceneEvidence(const Points& scan, const PointGrid& grid, const Vec3& viewpoint, std::vector<Plane> background,
-                             float background_tolerance)
-    : grid_(grid), viewpoint_(viewpoint), background_(std::move(background)),
-      background_tolerance_(background_tolerance), to_view_(Eigen::Matrix3f::Identity()) {
+SceneEvidence::SceneEvidence(const Points& scan, const PointGrid& grid, const Vec3& viewpoint)
+    : grid_(grid), viewpoint_(viewpoint), to_view_(Eigen::Matrix3f::Identity()) {
   if (scan.empty()) return;
   Vec3 axis = Vec3::Zero();
   for (const Vec3& p : scan) axis += p - viewpoint;

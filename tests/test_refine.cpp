@@ -76,7 +76,8 @@ TEST(Evidence, TheBinsPlanesDoNotSupportAPart) {
   Pose flush = Pose::Identity();  // the box's -z face (facing the sensor) in the floor
   flush.translation() = Vec3(10, -5, 510);
   const auto score = [&](std::vector<Plane> background) {
-    const SceneEvidence evidence(floor.points, grid, Vec3::Zero(), std::move(background), 1.0f);
+    SceneEvidence evidence(floor.points, grid, Vec3::Zero());
+    evidence.setBackground(std::move(background), 1.0f);
     return evidence.evaluate(flush, box.points, box.normals, 1.0f, box.sample_radius).score();
   };
   EXPECT_GT(score({}), 0.8f);

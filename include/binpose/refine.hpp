@@ -48,13 +48,11 @@ struct Evidence {
 /// free-space contradictions.
 class SceneEvidence {
  public:
-  /// `background`: the bin's planes (planes.hpp). A model point within `background_tolerance`
-  /// of one is not supported by the scan there: the bin is seen, not the part. Without this an
-  /// L-shaped part fits the corner of floor and wall and scores as if it were there.
-  SceneEvidence(const Points& scan, const PointGrid& grid, const Vec3& viewpoint, std::vector<Plane> background = {},
-                float background_tolerance = 0);
-  /// Replaces the bin's planes (as the constructor's `background`): the planes may be found
-  /// while the rest is built.
+  SceneEvidence(const Points& scan, const PointGrid& grid, const Vec3& viewpoint);
+  /// `background`: the bin's planes (planes.hpp; none by default). A model point within
+  /// `background_tolerance` of one is not supported by the scan there: the bin is seen, not the
+  /// part. Without this an L-shaped part fits the corner of floor and wall and scores as if it
+  /// were there. Set apart from the constructor: the planes may be found while it runs.
   void setBackground(std::vector<Plane> background, float background_tolerance) {
     background_ = std::move(background);
     background_tolerance_ = background_tolerance;
