@@ -73,7 +73,7 @@ struct GroupOutcome {
 /// The buffers and the outcome of one place in a batch (the outcome is kept until it is taken).
 struct Slot {
   explicit Slot(const ModelDatabase& db, const DetectionParams& p, std::uint32_t max_list)
-      : voter(db, p.candidates_per_point, max_list, p.candidate_spacing) {}
+      : voter(db, p.candidates_per_point, max_list, p.candidate_spacing, p.weigh_rare_keys) {}
   Voter voter;
   std::vector<Correspondence> candidates;
   Points clique_model, clique_scene;
@@ -271,7 +271,8 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
         std::vector<std::uint32_t> partners;
         if (p.partner_spacing > 0) partners = voxelSubsample(scene.points, p.partner_spacing);
         local = std::make_unique<NeighbourhoodVoter>(db_, scene.points, scene.normals, p.vote_radius,
-                                                     p.candidates_per_point, max_list, partners, p.candidate_spacing);
+                                                     p.candidates_per_point, max_list, partners, p.candidate_spacing,
+                                                     p.weigh_rare_keys);
         may_vote.assign(scene.points.size(), p.voter_spacing > 0 ? 0 : 1);
         if (p.voter_spacing > 0)
           for (const auto i : voxelSubsample(scene.points, p.voter_spacing)) may_vote[i] = 1;
@@ -330,7 +331,7 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   std::vector<Slot> slots;
   for (std::size_t k = 0; k < batch; ++k) slots.emplace_back(db_, p, max_list);
   GroupOutcome earlier;
-  ParallelVoter parallel(db_, p.candidates_per_point, max_list, p.candidate_spacing);  // for those run again
+  ParallelVoter parallel(db_, p.candidates_per_point, max_list, p.candidate_spacing, p.weigh_rare_keys);  // for those run again
   std::vector<std::uint32_t> voters;
   double work_ms = 0, group_vote_ms = 0, group_match_ms = 0, group_refine_ms = 0;  // see below
   const auto t_match = Clock::now();

@@ -39,6 +39,7 @@ void visit(json& j, DetectionParams& p, bool write) {
   field(j, "candidate_spacing", p.candidate_spacing, write);
   field(j, "voter_spacing", p.voter_spacing, write);
   field(j, "max_key_share", p.max_key_share, write);
+  field(j, "weigh_rare_keys", p.weigh_rare_keys, write);
   field(j, "refine", p.refine, write);
   field(j, "icp_iterations", p.icp_iterations, write);
   field(j, "icp_model_points", p.icp_model_points, write);

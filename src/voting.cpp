@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #if defined(__x86_64__)
 #include <immintrin.h>
 #endif
@@ -101,6 +102,10 @@ std::vector<std::size_t> selectCandidates(std::span<const std::uint32_t> values,
   return picked;
 }
 
+std::uint32_t keyWeight(std::size_t model_points, std::size_t list) {
+  return static_cast<std::uint32_t>(std::bit_width(model_points / std::max<std::size_t>(list, 1)));
+}
+
 void Voter::countList(std::span<const ModelDatabase::PointId> ids, std::uint16_t times) {
   // Four ids per load: the increments bound this loop, and a load per id took about 5% more
   // (BM_LocalVotes 108-111 ms against 104-105). No branch: every id counts.
@@ -160,8 +165,8 @@ void Voter::flushDense() {
   dense_sum_ = 0;
 }
 
-Voter::Voter(const ModelDatabase& db, int keep, std::uint32_t max_list, float spacing)
-    : db_(db), keep_(keep), max_list_(max_list), spacing_(spacing), votes_(db.model().points.size(), 0),
+Voter::Voter(const ModelDatabase& db, int keep, std::uint32_t max_list, float spacing, bool weigh_rare)
+    : db_(db), keep_(keep), weigh_rare_(weigh_rare), max_list_(max_list), spacing_(spacing), votes_(db.model().points.size(), 0),
       dense_(64 * ((db.model().points.size() + 63) / 64), 0), bitsets_(haveAvx2()) {}
 
 void Voter::useBitsets(bool on) { bitsets_ = on && haveAvx2(); }
@@ -178,11 +183,15 @@ void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t
   }
   std::sort(keys_.begin(), keys_.end());
   lists_.clear();
+  // With weights, no 16-bit count can overflow: each feature adds at most 65535 / features.
+  const std::size_t n_model = votes_.size();
+  const std::uint32_t most = weigh_rare_ ? std::max<std::uint32_t>(1, 65535 / std::max<std::uint32_t>(1, static_cast<std::uint32_t>(keys_.size()))) : 1;
   for (std::size_t a = 0, b = 0; a < keys_.size(); a = b) {
     while (b < keys_.size() && keys_[b] == keys_[a]) ++b;
     const auto ids = db_.lookup(keys_[a]);
     if (ids.empty() || ids.size() > max_list_) continue;  // a feature nearly every model point has: no information
-    const auto times = static_cast<std::uint16_t>(b - a);
+    const std::uint32_t weight = weigh_rare_ ? std::min(most, keyWeight(n_model, ids.size())) : 1;
+    const auto times = static_cast<std::uint16_t>((b - a) * weight);
     lists_.push_back({ids, bitsets_ && times <= 255 ? db_.denseBits(keys_[a]) : std::span<const std::uint64_t>{}, times});
   }
   // The lists lie far apart in the table: each one's first lines are fetched while the lists
@@ -271,8 +280,8 @@ void Voter::vote(const Points& points, const Points& normals, std::span<const st
   for (const std::uint32_t k : group) votePoint(points, normals, k, group, out);
 }
 
-ParallelVoter::ParallelVoter(const ModelDatabase& db, int keep, std::uint32_t max_list, float spacing)
-    : voters_([&db, keep, max_list, spacing] { return Voter(db, keep, max_list, spacing); }) {}
+ParallelVoter::ParallelVoter(const ModelDatabase& db, int keep, std::uint32_t max_list, float spacing, bool weigh_rare)
+    : voters_([&db, keep, max_list, spacing, weigh_rare] { return Voter(db, keep, max_list, spacing, weigh_rare); }) {}
 
 void ParallelVoter::vote(const Points& points, const Points& normals, std::span<const std::uint32_t> group,
                          std::vector<Correspondence>& out) {
@@ -298,7 +307,7 @@ struct NeighbourhoodVoter::Local {
 
 NeighbourhoodVoter::NeighbourhoodVoter(const ModelDatabase& db, const Points& points, const Points& normals, float radius,
                                        int keep, std::uint32_t max_list, std::span<const std::uint32_t> partners,
-                                       float spacing)
+                                       float spacing, bool weigh_rare)
     : points_(points), normals_(normals), radius_(radius), voted_(points.size(), 0), candidates_(points.size()) {
   if (partners.empty()) {
     partners_.resize(points.size());
@@ -309,7 +318,7 @@ NeighbourhoodVoter::NeighbourhoodVoter(const ModelDatabase& db, const Points& po
   for (const auto o : partners_) partner_points_.push_back(points[o]);
   tree_ = std::make_unique<KdTree>(partner_points_);
   // Each thread's copy of this one (its own accumulator and buffers).
-  locals_ = std::make_unique<tbb::enumerable_thread_specific<Local>>(Local{Voter(db, keep, max_list, spacing), {}, {}, {}});
+  locals_ = std::make_unique<tbb::enumerable_thread_specific<Local>>(Local{Voter(db, keep, max_list, spacing, weigh_rare), {}, {}, {}});
 }
 
 NeighbourhoodVoter::~NeighbourhoodVoter() = default;

@@ -394,3 +394,46 @@ TEST(Voting, LocalVotesPointAtTheTrueModelPoints) {
   EXPECT_GT(voted, static_cast<int>(points.size()) / 5);  // flat faces: many points have no outlier (eq. 11)
   EXPECT_GT(right, 3 * voted / 4) << right << " of " << voted << " candidates near the true model point";
 }
+
+TEST(Voting, KeyWeightIsTheBitLengthOfTheModelOverTheList) {
+  EXPECT_EQ(keyWeight(4000, 4000), 1u);  // every model point: one bit at most
+  EXPECT_EQ(keyWeight(4000, 2001), 1u);  // more than half
+  EXPECT_EQ(keyWeight(4000, 2000), 2u);  // 4000 / 2000 = 2 = 0b10
+  EXPECT_EQ(keyWeight(4000, 250), 5u);   // a sixteenth: 16 = 0b10000
+  EXPECT_EQ(keyWeight(4000, 1), 12u);    // 4000 < 2^12
+  EXPECT_EQ(keyWeight(4000, 0), 12u);    // an empty list is never counted; no division by zero
+}
+
+TEST(Voting, RareKeyWeightsPointAtTheTrueModelPoints) {
+  // The whole part as one group, each feature weighted by its key's rarity: the first candidate
+  // of most scene points lies at their true model point (scene point i is model point 3 i).
+  const auto [points, normals, group] = wholePart(13);
+  Voter plain(lDatabase(), 1), weighted(lDatabase(), 1, UINT32_MAX, 0.0f, true);
+  const Points& model = lDatabase().model().points;
+  const float near = 2.5f * lDatabase().model().sample_radius;
+  int voted = 0, right = 0, differ = 0;
+  for (std::uint32_t k = 0; k < points.size(); k += 3) {
+    std::vector<Correspondence> a, b;
+    plain.votePoint(points, normals, k, group, a);
+    weighted.votePoint(points, normals, k, group, b);
+    differ += a != b;
+    if (b.empty()) continue;
+    ++voted;
+    right += (model[b.front().model] - model[3 * k]).norm() <= near;
+  }
+  EXPECT_GT(voted, static_cast<int>(points.size()) / 15);
+  EXPECT_GT(right, 3 * voted / 4) << right << " of " << voted << " candidates near the true model point";
+  EXPECT_GT(differ, 0) << "the weights changed no point's candidates: this test would not see them work";
+}
+
+TEST(Voting, BitsetCountingGivesTheSameWeightedCandidates) {
+  const auto [points, normals, group] = wholePart(22);
+  Voter by_bits(lDatabase(), 12, UINT32_MAX, 2.7f, true), by_points(lDatabase(), 12, UINT32_MAX, 2.7f, true);
+  by_points.useBitsets(false);
+  if (!by_bits.usesBitsets()) GTEST_SKIP() << "no AVX2 on this CPU: every list is counted point by point";
+  std::vector<Correspondence> a, b;
+  by_bits.vote(points, normals, group, a);
+  by_points.vote(points, normals, group, b);
+  ASSERT_GT(a.size(), group.size());
+  EXPECT_EQ(a, b);
+}
