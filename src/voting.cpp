@@ -185,7 +185,8 @@ void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t
   lists_.clear();
   // With weights, no 16-bit count can overflow: each feature adds at most 65535 / features.
   const std::size_t n_model = votes_.size();
-  const std::uint32_t most = weigh_rare_ ? std::max<std::uint32_t>(1, 65535 / std::max<std::uint32_t>(1, static_cast<std::uint32_t>(keys_.size()))) : 1;
+  const auto features = std::max<std::size_t>(1, keys_.size());
+  const auto most = static_cast<std::uint32_t>(weigh_rare_ ? std::max<std::size_t>(1, 65535 / features) : 1);
   for (std::size_t a = 0, b = 0; a < keys_.size(); a = b) {
     while (b < keys_.size() && keys_[b] == keys_[a]) ++b;
     const auto ids = db_.lookup(keys_[a]);

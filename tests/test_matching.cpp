@@ -342,16 +342,20 @@ TEST(Voting, LongListsHeldAsBitsetsHoldTheSamePoints) {
 
 TEST(Voting, BitsetCountingGivesTheSameCandidates) {
   // The whole part as one group (500 partners: a key can come up more than 255 times, and the
-  // byte counters fill up and are flushed), with the fast preset's candidate rule.
-  const auto [points, normals, group] = wholePart(21);
-  Voter by_bits(lDatabase(), 12, UINT32_MAX, 2.7f), by_points(lDatabase(), 12, UINT32_MAX, 2.7f);
-  by_points.useBitsets(false);
-  if (!by_bits.usesBitsets()) GTEST_SKIP() << "no AVX2 on this CPU: every list is counted point by point";
-  std::vector<Correspondence> a, b;
-  by_bits.vote(points, normals, group, a);
-  by_points.vote(points, normals, group, b);
-  ASSERT_GT(a.size(), group.size());
-  EXPECT_EQ(a, b);
+  // byte counters fill up and are flushed), with the fast preset's candidate rule, one vote per
+  // feature and rare keys weighing more (a bitset list then adds up to 4 at a time).
+  for (const bool weigh_rare : {false, true}) {
+    SCOPED_TRACE(weigh_rare ? "rare keys weigh more" : "one vote per feature");
+    const auto [points, normals, group] = wholePart(weigh_rare ? 22 : 21);
+    Voter by_bits(lDatabase(), 12, UINT32_MAX, 2.7f, weigh_rare), by_points(lDatabase(), 12, UINT32_MAX, 2.7f, weigh_rare);
+    by_points.useBitsets(false);
+    if (!by_bits.usesBitsets()) GTEST_SKIP() << "no AVX2 on this CPU: every list is counted point by point";
+    std::vector<Correspondence> a, b;
+    by_bits.vote(points, normals, group, a);
+    by_points.vote(points, normals, group, b);
+    ASSERT_GT(a.size(), group.size());
+    EXPECT_EQ(a, b);
+  }
 }
 
 TEST(Voting, CandidateSpacingKeepsTheBestAndSpreadsTheRest) {
@@ -424,16 +428,4 @@ TEST(Voting, RareKeyWeightsPointAtTheTrueModelPoints) {
   EXPECT_GT(voted, static_cast<int>(points.size()) / 15);
   EXPECT_GT(right, 3 * voted / 4) << right << " of " << voted << " candidates near the true model point";
   EXPECT_GT(differ, 0) << "the weights changed no point's candidates: this test would not see them work";
-}
-
-TEST(Voting, BitsetCountingGivesTheSameWeightedCandidates) {
-  const auto [points, normals, group] = wholePart(22);
-  Voter by_bits(lDatabase(), 12, UINT32_MAX, 2.7f, true), by_points(lDatabase(), 12, UINT32_MAX, 2.7f, true);
-  by_points.useBitsets(false);
-  if (!by_bits.usesBitsets()) GTEST_SKIP() << "no AVX2 on this CPU: every list is counted point by point";
-  std::vector<Correspondence> a, b;
-  by_bits.vote(points, normals, group, a);
-  by_points.vote(points, normals, group, b);
-  ASSERT_GT(a.size(), group.size());
-  EXPECT_EQ(a, b);
 }

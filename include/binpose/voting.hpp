@@ -44,8 +44,9 @@ std::vector<std::size_t> selectCandidates(std::span<const std::uint32_t> values,
 /// Beyond the thesis: the votes one feature adds to each model point its key lists, when rare
 /// keys weigh more: the bit length of n_M / list length (integer division), about the bits the
 /// key tells of the model point (a key listing more than half of the n_M model points adds 1,
-/// one listing a sixteenth adds 5, one listing a single point of 4000 adds 12). The pairs of flat faces, listed under keys holding a sixth
-/// of the model, no longer outvote the rarer features of a part's shape. `list` >= 1.
+/// one listing a sixteenth adds 5, one listing a single point of 4000 adds 12). The pairs of
+/// flat faces, listed under keys holding a sixth of the model, no longer outvote the rarer
+/// features of a part's shape. `list` >= 1.
 std::uint32_t keyWeight(std::size_t model_points, std::size_t list);
 
 /// Votes for the model points of every point of a sub-group (eq. 8-12). Holds the accumulator
