@@ -80,6 +80,7 @@ struct Options {
   /// to check that what a preset gains on the fixed bins is not fitted to them.
   std::uint64_t seed_offset = 0;
   std::string params;  ///< JSON file of parameter overrides for binpose, in the thesis's 60 mm units
+  int model_points = 0;  ///< points of binpose's model database (0: each input's own, ModelParams' default)
   std::string run_input, run_method;  // child mode
 };
 
@@ -293,8 +294,8 @@ int runOne(const Options& o) {
   const auto spec = std::find_if(inputSpecs().begin(), inputSpecs().end(), [&](auto& s) { return s.name == o.run_input; });
   if (spec == inputSpecs().end()) throw Error(fmt::format("unknown input '{}'", o.run_input));
   const Input in = loadInput(o, *spec);
-  const OrientedModel model = orientedModel(in, *spec);  // binpose's; a cloud model's evaluation surface
-  const EvalModel eval = in.model.is_mesh ? in.eval : cloudEvalModel(model);
+  const OrientedModel model = orientedModel(in, *spec, o.model_points);  // binpose's; a cloud model's evaluation surface
+  const EvalModel eval = in.model.is_mesh ? in.eval : cloudEvalModel(orientedModel(in, *spec));  // the same whatever model_points
   const long baseline = residentKiB();
   const std::size_t instances = in.truth.instances.size();
   Outcome r;
@@ -345,6 +346,8 @@ json runChild(const std::string& self, const Options& o, const std::string& inpu
                                      "--repeats", repeats.c_str(), "--seed-offset", offset.c_str(),
                                      "--run", input.c_str(), method.c_str()};
     if (!o.params.empty()) args.insert(args.end(), {"--params", o.params.c_str()});
+    const std::string model_points = std::to_string(o.model_points);
+    args.insert(args.end(), {"--model-points", model_points.c_str()});
     args.push_back(nullptr);
     execv(self.c_str(), const_cast<char* const*>(args.data()));
     _exit(127);
@@ -426,6 +429,9 @@ int main(int argc, char** argv) {
   app.add_option("--params", o.params,
                  "JSON file of binpose parameter overrides, in the thesis's units (60 mm part), applied before scaling");
   std::vector<std::string> run;
+  app.add_option("--model-points", o.model_points, "Points of binpose's model database (0: the input's default)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 65535));
   app.add_option("--run", run, "Child mode: INPUT METHOD")->expected(2);
   CLI11_PARSE(app, argc, argv);
   try {

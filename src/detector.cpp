@@ -38,10 +38,10 @@ PreparedScene withoutPlanes(PreparedScene scene, const DetectionParams& p, std::
   return kept;
 }
 
-/// Most of a clique on scan points supporting a detection that scored well: the same object again.
-bool mostlyExplained(std::span<const Correspondence> clique, const PreparedScene& scene, const std::vector<char>& explained) {
+/// Most of a clique on scene points marked as explained by a detection (explain_score): the same object again.
+bool mostlyExplained(std::span<const Correspondence> clique, const std::vector<char>& explained) {
   std::size_t taken = 0;
-  for (const Correspondence& c : clique) taken += explained[scene.scan_index[c.scene]];
+  for (const Correspondence& c : clique) taken += explained[c.scene];
   return 2 * taken > clique.size();
 }
 
@@ -70,13 +70,20 @@ struct GroupOutcome {
   double vote_ms = 0, match_ms = 0, refine_ms = 0;  ///< the thread's time in each stage
 };
 
+/// Candidates kept per scene point: a body of revolution's votes do not spread over rings.
+int candidatesPerPoint(const DetectionParams& p, const Orbits* orbits) {
+  return orbits != nullptr ? std::min(p.candidates_per_point, p.revolution_candidates) : p.candidates_per_point;
+}
+
 /// The buffers and the outcome of one place in a batch (the outcome is kept until it is taken).
 struct Slot {
-  explicit Slot(const ModelDatabase& db, const DetectionParams& p, std::uint32_t max_list)
-      : voter(db, p.candidates_per_point, max_list, p.candidate_spacing, p.weigh_rare_keys) {}
+  explicit Slot(const ModelDatabase& db, const DetectionParams& p, std::uint32_t max_list, const Orbits* orbits)
+      : voter(db, candidatesPerPoint(p, orbits), max_list, p.candidate_spacing, p.weigh_rare_keys, orbits) {}
   Voter voter;
   std::vector<Correspondence> candidates;
-  Points clique_model, clique_scene;
+  Points clique_model, clique_scene, clique_normals;
+  std::vector<std::uint32_t> clique_ids;
+  std::vector<Pose> alternatives;  ///< other poses of the clique (a body of revolution's other axis sign)
   GroupOutcome outcome;
 };
 
@@ -90,6 +97,7 @@ struct Matcher {
   const PointGrid& scan_grid;
   const SceneEvidence& evidence;
   const NeighbourhoodVoter* local;  ///< the local votes (null: each sub-group votes, 4.3)
+  const Orbits* orbits;             ///< a body of revolution's (null: matched point to point)
 
   /// Votes (4.3-4.4), clique (4.5), pose (4.6), pre-screen, ICP and score of one sub-group,
   /// with the scene points not yet removed. The pose, ICP and score depend on the clique's
@@ -126,7 +134,7 @@ struct Matcher {
     }
     const auto t_refine = Clock::now();
     out.match_ms = msSince(t_match);
-    if (p.verify && mostlyExplained(out.clique, scene, explained)) return;  // it stays so: not verified when taken
+    if (p.verify && mostlyExplained(out.clique, explained)) return;  // it stays so: not verified when taken
     if (earlier != nullptr && earlier->clique == out.clique) {
       out.screened_out = earlier->screened_out;
       out.hypothesis = earlier->hypothesis;
@@ -141,15 +149,29 @@ struct Matcher {
   bool match(Slot& s) const {
     const Points& model = db.model().points;
     if (s.candidates.size() < static_cast<std::size_t>(p.C_n)) return false;
-    const CliqueResult clique = maximumClique(consistencyGraph(s.candidates, scene.points, model, p.e_gmax), p.clique_work_limit);
+    const Graph graph = orbits != nullptr ? revolutionConsistencyGraph(s.candidates, scene.points, scene.normals, *orbits,
+                                                                       p.e_gmax, p.revolution_angle_tolerance)
+                                          : consistencyGraph(s.candidates, scene.points, model, p.e_gmax);
+    const CliqueResult clique = maximumClique(graph, p.clique_work_limit);
     if (clique.vertices.size() < static_cast<std::size_t>(p.C_n)) return false;
     s.clique_model.clear();
     s.clique_scene.clear();
+    s.clique_normals.clear();
+    s.clique_ids.clear();
     for (const int v : clique.vertices) {
       s.clique_model.push_back(model[s.candidates[v].model]);
       s.clique_scene.push_back(scene.points[s.candidates[v].scene]);
+      s.clique_normals.push_back(scene.normals[s.candidates[v].scene]);
+      s.clique_ids.push_back(s.candidates[v].model);
     }
-    const PoseFit fit = solvePose(s.clique_model, s.clique_scene);
+    s.alternatives.clear();
+    PoseFit fit;
+    if (orbits != nullptr) {
+      for (const PoseFit& f : solveRevolutionPoses(*orbits, s.clique_ids, model, s.clique_scene, s.clique_normals))
+        (fit.ok ? s.alternatives.push_back(f.pose) : void(fit = f));
+    } else {
+      fit = solvePose(s.clique_model, s.clique_scene);
+    }
     if (!fit.ok) return false;
     for (const int v : clique.vertices) s.outcome.clique.push_back(s.candidates[v]);
     s.outcome.hypothesis.detection = Detection{fit.pose, 0.0f, static_cast<int>(clique.vertices.size()), fit.rms};
@@ -160,8 +182,16 @@ struct Matcher {
   void verify(Slot& s) const {
     Hypothesis& h = s.outcome.hypothesis;
     Detection& det = h.detection;
-    if (p.verify && p.prescreen &&
-        evidence.evaluate(det.pose, icp_model.points, icp_model.normals, p.icp_max_distance, 0.0f).score() < p.min_score) {
+    auto prescore = [&](const Pose& pose) {
+      return evidence.evaluate(pose, icp_model.points, icp_model.normals, p.icp_max_distance, 0.0f).score();
+    };
+    float best = p.verify && (p.prescreen || !s.alternatives.empty()) ? prescore(det.pose) : 1.0f;
+    for (const Pose& other : s.alternatives)  // the scan decides between a clique's poses
+      if (const float score = prescore(other); score > best) {
+        best = score;
+        det.pose = other;
+      }
+    if (p.verify && p.prescreen && best < p.min_score) {
       s.outcome.screened_out = true;  // far from the scan even at the ICP gate: not worth refining
       return;
     }
@@ -189,6 +219,9 @@ Detector::Detector(const ModelDatabase& db, const DetectionParams& params)
   model_centroid_ /= static_cast<float>(m.size());
   for (const Vec3& p : m) model_radius_ = std::max(model_radius_, (p - model_centroid_).norm());
   bounds(m, model_lo_, model_hi_);
+  if (params_.use_revolution)
+    if (const auto axis = findRevolutionAxis(db.model()))
+      orbits_ = makeOrbits(db, *axis, db.model().sample_radius);
 }
 
 bool Detector::nearModel(const Vec3& x, float distance) const {
@@ -271,8 +304,8 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
         std::vector<std::uint32_t> partners;
         if (p.partner_spacing > 0) partners = voxelSubsample(scene.points, p.partner_spacing);
         local = std::make_unique<NeighbourhoodVoter>(db_, scene.points, scene.normals, p.vote_radius,
-                                                     p.candidates_per_point, max_list, partners, p.candidate_spacing,
-                                                     p.weigh_rare_keys);
+                                                     candidatesPerPoint(p, orbits()), max_list, partners, p.candidate_spacing,
+                                                     p.weigh_rare_keys, orbits());
         may_vote.assign(scene.points.size(), p.voter_spacing > 0 ? 0 : 1);
         if (p.voter_spacing > 0)
           for (const auto i : voxelSubsample(scene.points, p.voter_spacing)) may_vote[i] = 1;
@@ -283,10 +316,10 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   result.timing.preprocess_ms = msSince(t0) - vote_setup_ms;  // the voters' setup counts as voting
   double vote_ms = vote_setup_ms;  // the setup, then the local votes of each batch
 
-  const Matcher matcher{db_, p, icp_model_, scene, scan, scan_grid, evidence, local.get()};
+  const Matcher matcher{db_, p, icp_model_, scene, scan, scan_grid, evidence, local.get(), orbits()};
   std::vector<char> removed(scene.points.size(), 0);
   std::vector<Hypothesis> hypotheses;
-  std::vector<char> explained(scan.size(), 0);  // scan points supporting a detection scoring >= 0.5
+  std::vector<char> explained(scene.points.size(), 0);  // scene points on a detection scoring >= explain_score
   int confident = 0;  // detections that removed their points
   bool enough = false;
 
@@ -296,28 +329,28 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
     if (!o.ran) return;
     ++result.subgroups_run;
     if (o.clique.empty()) return;
-    if (p.verify && mostlyExplained(o.clique, scene, explained)) return;
+    if (p.verify && mostlyExplained(o.clique, explained)) return;
     ++result.hypotheses;
     if (o.screened_out) return;
     ++result.refined;
     const Detection det = o.hypothesis.detection;
     if (p.verify && det.score < p.min_score) return;
-    if (det.score >= 0.5f)
-      for (const auto i : o.hypothesis.support) explained[i] = 1;
+    const bool remove = det.score >= p.removal_score;
+    if (remove || det.score >= p.explain_score) {
+      // 5.2.6, eq. 39: the scene points within sigma_dist of the posed model are removed; below
+      // removal_score, those within 2 verify_tolerance of it are only marked as explained.
+      const Pose inverse = det.pose.inverse();
+      const Vec3 centre = det.pose * model_centroid_;
+      const float near = remove ? p.sigma_dist : 2.0f * p.verify_tolerance;
+      const float reach = model_radius_ + near;
+      for (std::size_t i = 0; i < scene.points.size(); ++i) {
+        if (removed[i] || (scene.points[i] - centre).squaredNorm() > reach * reach) continue;
+        if (nearModel(inverse * scene.points[i], near)) (remove ? removed : explained)[i] = 1;
+      }
+    }
     hypotheses.push_back(std::move(o.hypothesis));
-    if (det.score < p.removal_score) return;  // not sure enough to take its points away
-    if (p.max_instances > 0 && ++confident >= p.max_instances) {  // enough sure detections
-      enough = true;
-      return;
-    }
-    // 5.2.6, eq. 39: remove the scene points within sigma_dist of the posed model.
-    const Pose inverse = det.pose.inverse();
-    const Vec3 centre = det.pose * model_centroid_;
-    const float reach = model_radius_ + p.sigma_dist;
-    for (std::size_t i = 0; i < scene.points.size(); ++i) {
-      if (removed[i] || (scene.points[i] - centre).squaredNorm() > reach * reach) continue;
-      if (nearModel(inverse * scene.points[i], p.sigma_dist)) removed[i] = 1;
-    }
+    if (!remove) return;  // not sure enough to take its points away
+    if (p.max_instances > 0 && ++confident >= p.max_instances) enough = true;  // enough sure detections
   };
 
   // Sub-groups run a batch at a time, side by side, on the scene as it stands at the batch's
@@ -329,9 +362,10 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
                                                     tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
   const std::size_t batch = 4 * std::max<std::size_t>(1, threads);
   std::vector<Slot> slots;
-  for (std::size_t k = 0; k < batch; ++k) slots.emplace_back(db_, p, max_list);
+  for (std::size_t k = 0; k < batch; ++k) slots.emplace_back(db_, p, max_list, orbits());
   GroupOutcome earlier;
-  ParallelVoter parallel(db_, p.candidates_per_point, max_list, p.candidate_spacing, p.weigh_rare_keys);  // for those run again
+  ParallelVoter parallel(db_, candidatesPerPoint(p, orbits()), max_list, p.candidate_spacing, p.weigh_rare_keys,
+                         orbits());  // for those run again
   std::vector<std::uint32_t> voters;
   double work_ms = 0, group_vote_ms = 0, group_match_ms = 0, group_refine_ms = 0;  // see below
   const auto t_match = Clock::now();

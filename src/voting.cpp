@@ -1,6 +1,8 @@
 // Accumulator voting and fourth-spread selection (thesis 4.3-4.4).
 #include <binpose/voting.hpp>
 
+#include <binpose/symmetry.hpp>
+
 #include <algorithm>
 #include <array>
 #include <bit>
@@ -165,11 +167,15 @@ void Voter::flushDense() {
   dense_sum_ = 0;
 }
 
-Voter::Voter(const ModelDatabase& db, int keep, std::uint32_t max_list, float spacing, bool weigh_rare)
-    : db_(db), keep_(keep), weigh_rare_(weigh_rare), max_list_(max_list), spacing_(spacing), votes_(db.model().points.size(), 0),
-      dense_(64 * ((db.model().points.size() + 63) / 64), 0), bitsets_(haveAvx2()) {}
+Voter::Voter(const ModelDatabase& db, int keep, std::uint32_t max_list, float spacing, bool weigh_rare, const Orbits* orbits)
+    : db_(db), keep_(keep), weigh_rare_(weigh_rare), max_list_(max_list), spacing_(spacing),
+      votes_(orbits != nullptr ? orbits->count : db.model().points.size(), 0),
+      dense_(64 * ((db.model().points.size() + 63) / 64), 0), bitsets_(orbits == nullptr && haveAvx2()), orbits_(orbits) {
+  if (orbits_ != nullptr && orbits_->of.size() != db.model().points.size())
+    throw Error(fmt::format("orbits of {} points for a model of {}", orbits_->of.size(), db.model().points.size()));
+}
 
-void Voter::useBitsets(bool on) { bitsets_ = on && haveAvx2(); }
+void Voter::useBitsets(bool on) { bitsets_ = on && orbits_ == nullptr && haveAvx2(); }
 
 void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t k,
                       std::span<const std::uint32_t> partners, std::vector<Correspondence>& out) {
@@ -184,7 +190,7 @@ void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t
   std::sort(keys_.begin(), keys_.end());
   lists_.clear();
   // With weights, no 16-bit count can overflow: each feature adds at most 65535 / features.
-  const std::size_t n_model = votes_.size();
+  const std::size_t n_model = db_.model().points.size();
   const auto features = std::max<std::size_t>(1, keys_.size());
   const auto most = static_cast<std::uint32_t>(weigh_rare_ ? std::max<std::size_t>(1, 65535 / features) : 1);
   for (std::size_t a = 0, b = 0; a < keys_.size(); a = b) {
@@ -193,7 +199,8 @@ void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t
     if (ids.empty() || ids.size() > max_list_) continue;  // a feature nearly every model point has: no information
     const std::uint32_t weight = weigh_rare_ ? std::min(most, keyWeight(n_model, ids.size())) : 1;
     const auto times = static_cast<std::uint16_t>((b - a) * weight);
-    lists_.push_back({ids, bitsets_ && times <= 255 ? db_.denseBits(keys_[a]) : std::span<const std::uint64_t>{}, times});
+    if (orbits_ != nullptr) lists_.push_back({orbits_->lookup(keys_[a]), {}, times});  // the orbits of those points
+    else lists_.push_back({ids, bitsets_ && times <= 255 ? db_.denseBits(keys_[a]) : std::span<const std::uint64_t>{}, times});
   }
   // The lists lie far apart in the table: each one's first lines are fetched while the lists
   // before it are counted (the table does not fit in the cache; the misses were half the time).
@@ -249,14 +256,21 @@ void Voter::select(std::uint32_t k, std::vector<Correspondence>& out) {
   for (; id < n; ++id)
     if (votes_[id] > above) outliers_.push_back(id);
   const auto value = [this](std::size_t m) { return std::uint32_t{votes_[m]}; };
+  // A body of revolution's accumulator is over its orbits: each one's first point stands for it.
+  const auto model_point = [this](std::size_t m) {
+    return static_cast<std::uint32_t>(orbits_ != nullptr ? orbits_->member[m] : m);
+  };
   if (keep_ <= 1 || spacing_ <= 0) {
     keepBest(outliers_, keep_, value);
-    for (const std::size_t m : outliers_) out.push_back({k, static_cast<std::uint32_t>(m)});
+    for (const std::size_t m : outliers_) out.push_back({k, model_point(m)});
     return;
   }
   // The upper outliers best first (sorted a batch at a time: usually the first batch holds all
   // that are kept); each kept unless a better one kept lies within spacing_.
-  const Points& model = db_.model().points;
+  // Distances between model points, or between their orbits in the axis's half-plane.
+  const auto where = [this](std::uint32_t m) -> const Vec3& {
+    return orbits_ != nullptr ? orbits_->plane[orbits_->of[m]] : db_.model().points[m];
+  };
   const std::size_t first = out.size();
   const auto better = moreVotes(value);
   const std::size_t batch = 4 * static_cast<std::size_t>(keep_);
@@ -266,11 +280,11 @@ void Voter::select(std::uint32_t k, std::vector<Correspondence>& out) {
       std::partial_sort(outliers_.begin() + static_cast<std::ptrdiff_t>(r),
                         outliers_.begin() + static_cast<std::ptrdiff_t>(sorted), outliers_.end(), better);
     }
-    const Vec3& m = model[outliers_[r]];
+    const Vec3& m = where(model_point(outliers_[r]));
     bool near = false;
-    for (std::size_t c = first; c < out.size() && !near; ++c) near = (model[out[c].model] - m).squaredNorm() < spacing_ * spacing_;
+    for (std::size_t c = first; c < out.size() && !near; ++c) near = (where(out[c].model) - m).squaredNorm() < spacing_ * spacing_;
     if (near) continue;
-    out.push_back({k, static_cast<std::uint32_t>(outliers_[r])});
+    out.push_back({k, model_point(outliers_[r])});
     if (out.size() - first >= static_cast<std::size_t>(keep_)) break;
   }
 }
@@ -281,8 +295,9 @@ void Voter::vote(const Points& points, const Points& normals, std::span<const st
   for (const std::uint32_t k : group) votePoint(points, normals, k, group, out);
 }
 
-ParallelVoter::ParallelVoter(const ModelDatabase& db, int keep, std::uint32_t max_list, float spacing, bool weigh_rare)
-    : voters_([&db, keep, max_list, spacing, weigh_rare] { return Voter(db, keep, max_list, spacing, weigh_rare); }) {}
+ParallelVoter::ParallelVoter(const ModelDatabase& db, int keep, std::uint32_t max_list, float spacing, bool weigh_rare,
+                             const Orbits* orbits)
+    : voters_([&db, keep, max_list, spacing, weigh_rare, orbits] { return Voter(db, keep, max_list, spacing, weigh_rare, orbits); }) {}
 
 void ParallelVoter::vote(const Points& points, const Points& normals, std::span<const std::uint32_t> group,
                          std::vector<Correspondence>& out) {
@@ -308,7 +323,7 @@ struct NeighbourhoodVoter::Local {
 
 NeighbourhoodVoter::NeighbourhoodVoter(const ModelDatabase& db, const Points& points, const Points& normals, float radius,
                                        int keep, std::uint32_t max_list, std::span<const std::uint32_t> partners,
-                                       float spacing, bool weigh_rare)
+                                       float spacing, bool weigh_rare, const Orbits* orbits)
     : points_(points), normals_(normals), radius_(radius), voted_(points.size(), 0), candidates_(points.size()) {
   if (partners.empty()) {
     partners_.resize(points.size());
@@ -319,7 +334,7 @@ NeighbourhoodVoter::NeighbourhoodVoter(const ModelDatabase& db, const Points& po
   for (const auto o : partners_) partner_points_.push_back(points[o]);
   tree_ = std::make_unique<KdTree>(partner_points_);
   // Each thread's copy of this one (its own accumulator and buffers).
-  locals_ = std::make_unique<tbb::enumerable_thread_specific<Local>>(Local{Voter(db, keep, max_list, spacing, weigh_rare), {}, {}, {}});
+  locals_ = std::make_unique<tbb::enumerable_thread_specific<Local>>(Local{Voter(db, keep, max_list, spacing, weigh_rare, orbits), {}, {}, {}});
 }
 
 NeighbourhoodVoter::~NeighbourhoodVoter() = default;

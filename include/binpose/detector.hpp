@@ -6,7 +6,9 @@
 #include <binpose/params.hpp>
 #include <binpose/pose.hpp>
 #include <binpose/refine.hpp>
+#include <binpose/symmetry.hpp>
 
+#include <optional>
 #include <vector>
 
 namespace binpose {
@@ -52,6 +54,8 @@ class Detector {
   [[nodiscard]] DetectionResult detect(const PointCloud& scan) const;
 
   [[nodiscard]] const DetectionParams& params() const { return params_; }
+  /// The model's orbits when it is matched as a body of revolution (use_revolution), else null.
+  [[nodiscard]] const Orbits* orbits() const { return orbits_ ? &*orbits_ : nullptr; }
 
  private:
   /// True when over half of the model's points (the ICP share of them), posed by `a`, lie
@@ -72,6 +76,7 @@ class Detector {
   Vec3 model_centroid_;
   float model_radius_ = 0;  ///< largest distance of a model point from the centroid
   Vec3 model_lo_, model_hi_;  ///< the model points' bounding box
+  std::optional<Orbits> orbits_;
 };
 
 }  // namespace binpose

@@ -13,6 +13,8 @@
 
 namespace binpose {
 
+struct Orbits;  // symmetry.hpp
+
 /// A candidate correspondence pair CP = {s, m}: a scene point index and a model point index.
 struct Correspondence {
   std::uint32_t scene;
@@ -57,8 +59,11 @@ class Voter {
   /// `max_list`: features whose key lists more model points than this are skipped (default: none).
   /// `spacing`: with keep > 1, each candidate at least this far (mm) in the model from every
   /// better-voted one kept (0: none). `weigh_rare`: see keyWeight (false: one vote per feature, eq. 9).
+  /// `orbits` (a body of revolution; symmetry.hpp): votes go to orbits, by their lists, and each
+  /// candidate orbit is given as its first model point (spacing then between orbits, in the
+  /// axis's half-plane). It must outlive the voter.
   explicit Voter(const ModelDatabase& db, int keep = 1, std::uint32_t max_list = UINT32_MAX, float spacing = 0.0f,
-                 bool weigh_rare = false);
+                 bool weigh_rare = false, const Orbits* orbits = nullptr);
   /// Appends to `out` the candidate pairs of each point of `group` (indices into points/normals),
   /// each point voting with the whole group (the thesis's sub-group voting).
   void vote(const Points& points, const Points& normals, std::span<const std::uint32_t> group,
@@ -94,12 +99,13 @@ class Voter {
     std::uint16_t times;  ///< features of the point with this key
   };
   std::vector<List> lists_;  ///< the model point lists of those keys
-  std::vector<std::uint16_t> votes_;      ///< A_k, one counter per model point
+  std::vector<std::uint16_t> votes_;      ///< A_k, one counter per model point (or orbit)
   std::vector<std::uint8_t> dense_;       ///< the long lists' votes not yet in votes_, a byte per model point
   std::uint32_t dense_sum_ = 0;           ///< the most any byte of dense_ can hold now
   bool bitsets_;                          ///< long lists counted by bitset (where the CPU has AVX2)
   std::vector<std::uint32_t> histogram_;  ///< the accumulator's histogram (four side by side)
   std::vector<std::size_t> outliers_;     ///< model points whose votes are upper outliers
+  const Orbits* orbits_;                  ///< a body of revolution's (votes_ then per orbit)
 };
 
 /// Voter::vote with the points of a group shared among threads: the same pairs in the same
@@ -107,7 +113,7 @@ class Voter {
 class ParallelVoter {
  public:
   explicit ParallelVoter(const ModelDatabase& db, int keep = 1, std::uint32_t max_list = UINT32_MAX, float spacing = 0.0f,
-                         bool weigh_rare = false);
+                         bool weigh_rare = false, const Orbits* orbits = nullptr);
   void vote(const Points& points, const Points& normals, std::span<const std::uint32_t> group,
             std::vector<Correspondence>& out);
 
@@ -124,10 +130,10 @@ class ParallelVoter {
 class NeighbourhoodVoter {
  public:
   /// Only the points listed in `partners` are paired with the voters (all when empty). The
-  /// points and normals must outlive the voter. `spacing`, `weigh_rare`: as Voter's.
+  /// points and normals must outlive the voter. `spacing`, `weigh_rare`, `orbits`: as Voter's.
   NeighbourhoodVoter(const ModelDatabase& db, const Points& points, const Points& normals, float radius, int keep,
                      std::uint32_t max_list = UINT32_MAX, std::span<const std::uint32_t> partners = {},
-                     float spacing = 0.0f, bool weigh_rare = false);
+                     float spacing = 0.0f, bool weigh_rare = false, const Orbits* orbits = nullptr);
   ~NeighbourhoodVoter();
   NeighbourhoodVoter(const NeighbourhoodVoter&) = delete;
   NeighbourhoodVoter& operator=(const NeighbourhoodVoter&) = delete;
