@@ -154,22 +154,23 @@ struct Matcher {
                                           : consistencyGraph(s.candidates, scene.points, model, p.e_gmax);
     const CliqueResult clique = maximumClique(graph, p.clique_work_limit);
     if (clique.vertices.size() < static_cast<std::size_t>(p.C_n)) return false;
-    s.clique_model.clear();
     s.clique_scene.clear();
-    s.clique_normals.clear();
-    s.clique_ids.clear();
-    for (const int v : clique.vertices) {
-      s.clique_model.push_back(model[s.candidates[v].model]);
-      s.clique_scene.push_back(scene.points[s.candidates[v].scene]);
-      s.clique_normals.push_back(scene.normals[s.candidates[v].scene]);
-      s.clique_ids.push_back(s.candidates[v].model);
-    }
+    for (const int v : clique.vertices) s.clique_scene.push_back(scene.points[s.candidates[v].scene]);
     s.alternatives.clear();
     PoseFit fit;
-    if (orbits != nullptr) {
-      for (const PoseFit& f : solveRevolutionPoses(*orbits, s.clique_ids, model, s.clique_scene, s.clique_normals))
-        (fit.ok ? s.alternatives.push_back(f.pose) : void(fit = f));
+    if (orbits != nullptr) {  // the axis of the clique's orbits; the other axis sign, if any, kept for the scan
+      s.clique_normals.clear();
+      s.clique_ids.clear();
+      for (const int v : clique.vertices) {
+        s.clique_normals.push_back(scene.normals[s.candidates[v].scene]);
+        s.clique_ids.push_back(s.candidates[v].model);
+      }
+      const auto fits = solveRevolutionPoses(*orbits, s.clique_ids, model, s.clique_scene, s.clique_normals);
+      if (!fits.empty()) fit = fits.front();
+      for (std::size_t f = 1; f < fits.size(); ++f) s.alternatives.push_back(fits[f].pose);
     } else {
+      s.clique_model.clear();
+      for (const int v : clique.vertices) s.clique_model.push_back(model[s.candidates[v].model]);
       fit = solvePose(s.clique_model, s.clique_scene);
     }
     if (!fit.ok) return false;
@@ -185,15 +186,17 @@ struct Matcher {
     auto prescore = [&](const Pose& pose) {
       return evidence.evaluate(pose, icp_model.points, icp_model.normals, p.icp_max_distance, 0.0f).score();
     };
-    float best = p.verify && (p.prescreen || !s.alternatives.empty()) ? prescore(det.pose) : 1.0f;
-    for (const Pose& other : s.alternatives)  // the scan decides between a clique's poses
-      if (const float score = prescore(other); score > best) {
-        best = score;
-        det.pose = other;
+    if (p.verify) {  // the scan decides between a clique's poses, and screens out one far from it
+      float best = p.prescreen || !s.alternatives.empty() ? prescore(det.pose) : 1.0f;
+      for (const Pose& other : s.alternatives)
+        if (const float score = prescore(other); score > best) {
+          best = score;
+          det.pose = other;
+        }
+      if (p.prescreen && best < p.min_score) {
+        s.outcome.screened_out = true;  // far from the scan even at the ICP gate: not worth refining
+        return;
       }
-    if (p.verify && p.prescreen && best < p.min_score) {
-      s.outcome.screened_out = true;  // far from the scan even at the ICP gate: not worth refining
-      return;
     }
     if (p.refine) {
       const IcpParams icp{p.icp_iterations, p.icp_max_distance, p.verify_tolerance, p.viewpoint};

@@ -90,6 +90,33 @@ struct AxisFit {
   std::vector<ProfilePoint> profile;
   static constexpr double kTiltWeight = 5.0;  ///< mm per unit of normal tilt residual
 
+  /// The centre q across the axis (basis fx, fy) of the circles of the known radii:
+  /// |p_i - q|^2 = r_i^2, less its mean, is linear in q. False when the points leave it open.
+  bool circleCentre(const Eigen::Vector3d& fx, const Eigen::Vector3d& fy, Eigen::Vector2d& centre) const {
+    const std::size_t n = profile.size();
+    std::vector<Eigen::Vector2d> ps;
+    Eigen::Vector2d pm = Eigen::Vector2d::Zero();
+    double q = 0, r2 = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const Eigen::Vector3d s = (*scene)[i].cast<double>();
+      ps.emplace_back(s.dot(fx), s.dot(fy));
+      pm += ps.back();
+      q += ps.back().squaredNorm();
+      r2 += double(profile[i].r) * profile[i].r;
+    }
+    pm /= double(n), q /= double(n), r2 /= double(n);
+    Eigen::Matrix2d A = Eigen::Matrix2d::Zero();
+    Eigen::Vector2d b = Eigen::Vector2d::Zero();
+    for (std::size_t i = 0; i < n; ++i) {
+      const Eigen::Vector2d row = 2.0 * (ps[i] - pm);
+      A += row * row.transpose();
+      b += ((ps[i].squaredNorm() - q) - (double(profile[i].r) * profile[i].r - r2)) * row;
+    }
+    if (std::abs(A.determinant()) < 1e-6 * std::max(1.0, A.squaredNorm())) return false;
+    centre = A.ldlt().solve(b);
+    return true;
+  }
+
   /// c for axis a: the height from the mean of s_i . a - z_i; across the axis, each point's
   /// radius back along its normal's radial part (the normal of a body of revolution lies in its
   /// meridian plane), or with too few such points the circle of the known radii.
@@ -114,27 +141,8 @@ struct AxisFit {
     }
     if (weight >= 0.5) {
       centre /= weight;
-    } else {
-      std::vector<Eigen::Vector2d> ps;
-      Eigen::Vector2d pm = Eigen::Vector2d::Zero();
-      double q = 0, r2 = 0;
-      for (std::size_t i = 0; i < n; ++i) {
-        const Eigen::Vector3d s = (*scene)[i].cast<double>();
-        ps.emplace_back(s.dot(fx), s.dot(fy));
-        pm += ps.back();
-        q += ps.back().squaredNorm();
-        r2 += double(profile[i].r) * profile[i].r;
-      }
-      pm /= double(n), q /= double(n), r2 /= double(n);
-      Eigen::Matrix2d A = Eigen::Matrix2d::Zero();
-      Eigen::Vector2d b = Eigen::Vector2d::Zero();
-      for (std::size_t i = 0; i < n; ++i) {  // |p_i - q|^2 = r_i^2, less its mean: linear in q
-        const Eigen::Vector2d row = 2.0 * (ps[i] - pm);
-        A += row * row.transpose();
-        b += ((ps[i].squaredNorm() - q) - (double(profile[i].r) * profile[i].r - r2)) * row;
-      }
-      if (std::abs(A.determinant()) < 1e-6 * std::max(1.0, A.squaredNorm())) return false;
-      centre = A.ldlt().solve(b);
+    } else if (!circleCentre(fx, fy, centre)) {
+      return false;
     }
     c = centre.x() * fx + centre.y() * fy + h * a;
     return c.allFinite();
@@ -290,7 +298,6 @@ Orbits makeOrbits(const ModelDatabase& db, const RevolutionAxis& axis, float cel
     p.nr = tilt > 1e-9 ? float(mean[2] / tilt) : 0.0f;
     p.nz = tilt > 1e-9 ? float(mean[3] / tilt) : 1.0f;
     o.profile.push_back(p);
-    o.plane.emplace_back(p.r, p.z, 0.0f);
   }
   // Each key's list of model points as a list of their orbits, each once, ascending.
   const auto keys = db.keySpace().size();

@@ -268,8 +268,8 @@ void Voter::select(std::uint32_t k, std::vector<Correspondence>& out) {
   // The upper outliers best first (sorted a batch at a time: usually the first batch holds all
   // that are kept); each kept unless a better one kept lies within spacing_.
   // Distances between model points, or between their orbits in the axis's half-plane.
-  const auto where = [this](std::uint32_t m) -> const Vec3& {
-    return orbits_ != nullptr ? orbits_->plane[orbits_->of[m]] : db_.model().points[m];
+  const auto where = [this](std::uint32_t m) -> Vec3 {
+    return orbits_ != nullptr ? orbits_->inPlane(orbits_->of[m]) : db_.model().points[m];
   };
   const std::size_t first = out.size();
   const auto better = moreVotes(value);
@@ -280,7 +280,7 @@ void Voter::select(std::uint32_t k, std::vector<Correspondence>& out) {
       std::partial_sort(outliers_.begin() + static_cast<std::ptrdiff_t>(r),
                         outliers_.begin() + static_cast<std::ptrdiff_t>(sorted), outliers_.end(), better);
     }
-    const Vec3& m = where(model_point(outliers_[r]));
+    const Vec3 m = where(model_point(outliers_[r]));
     bool near = false;
     for (std::size_t c = first; c < out.size() && !near; ++c) near = (where(out[c].model) - m).squaredNorm() < spacing_ * spacing_;
     if (near) continue;

@@ -139,7 +139,7 @@ TEST(Revolution, ConsistencyGraphLinksTrueOrbitPairsAtAnyTurn) {
   for (std::uint32_t k = 0; k < 20; ++k) {  // each scene point also paired with an orbit 8+ mm away in the profile
     std::uint32_t wrong;
     do wrong = static_cast<std::uint32_t>(rng.below(o.of.size()));
-    while ((o.plane[o.of[wrong]] - o.plane[o.of[s.ids[k]]]).norm() < 8.0f);
+    while ((o.inPlane(o.of[wrong]) - o.inPlane(o.of[s.ids[k]])).norm() < 8.0f);
     cps.push_back({k, wrong});
   }
   const Graph g = revolutionConsistencyGraph(cps, s.scene, s.normals, o, 1.5f, 15.0f);
@@ -188,6 +188,11 @@ TEST(Revolution, DetectorFindsTheCapsOfABin) {
   SimulationParams sp;
   sp.seed = 7;
   const SimulatedScene bin = simulateBin(mesh, sp);
+  // Right up to a turn: the centroid within 3 mm and the axis within 3 degrees.
+  const auto right = [](const Detection& d, const SimulatedInstance& inst) {
+    return (d.pose * Vec3(0, 0, 10) - inst.pose * Vec3(0, 0, 10)).norm() < 3.0f &&
+           angleDeg(d.pose.linear() * Vec3::UnitZ(), inst.pose.linear() * Vec3::UnitZ()) < 3.0f;
+  };
   std::size_t found[2] = {0, 0}, half_visible = 0;
   for (const bool revolution : {false, true}) {
     DetectionParams p = presetByName("fast");
@@ -196,24 +201,14 @@ TEST(Revolution, DetectorFindsTheCapsOfABin) {
     EXPECT_EQ(detector.orbits() != nullptr, revolution);
     const DetectionResult result = detector.detect(bin.cloud);
     std::size_t wrong = 0;
-    for (const Detection& d : result.detections) {
-      bool right = false;
-      for (const auto& inst : bin.instances) {
-        const float centroid = (d.pose * Vec3(0, 0, 10) - inst.pose * Vec3(0, 0, 10)).norm();
-        right |= centroid < 3.0f && angleDeg(d.pose.linear() * Vec3::UnitZ(), inst.pose.linear() * Vec3::UnitZ()) < 3.0f;
-      }
-      wrong += !right;
-    }
+    for (const Detection& d : result.detections)
+      wrong += std::none_of(bin.instances.begin(), bin.instances.end(), [&](const auto& inst) { return right(d, inst); });
     EXPECT_LE(wrong, revolution ? 2u : 0u) << "revolution " << revolution;
     for (const auto& inst : bin.instances) {
       if (inst.visib_fract <= 0.5f) continue;
       half_visible += revolution;
-      for (const Detection& d : result.detections)
-        if ((d.pose * Vec3(0, 0, 10) - inst.pose * Vec3(0, 0, 10)).norm() < 3.0f &&
-            angleDeg(d.pose.linear() * Vec3::UnitZ(), inst.pose.linear() * Vec3::UnitZ()) < 3.0f) {
-          ++found[revolution];
-          break;
-        }
+      found[revolution] += std::any_of(result.detections.begin(), result.detections.end(),
+                                       [&](const Detection& d) { return right(d, inst); });
     }
   }
   EXPECT_GE(half_visible, 8u);

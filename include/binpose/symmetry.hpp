@@ -45,7 +45,8 @@ struct Orbits {
   std::uint32_t count = 0;            ///< orbits
   std::vector<std::uint32_t> member;  ///< per orbit: its lowest model point, which stands for it
   std::vector<ProfilePoint> profile;  ///< per orbit: its points' mean (normal tilt renormalised)
-  Points plane;                       ///< per orbit: (r, z, 0) of the mean, for distances between orbits
+  /// An orbit's (r, z, 0): distances between orbits in the axis's half-plane.
+  [[nodiscard]] Vec3 inPlane(std::uint32_t orbit) const { return {profile[orbit].r, profile[orbit].z, 0.0f}; }
   /// The orbits of the model points under `key` (ModelDatabase::lookup), ascending.
   [[nodiscard]] std::span<const ModelDatabase::PointId> lookup(std::uint32_t key) const {
     if (key + 1 >= offsets.size()) return {};
