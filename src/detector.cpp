@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <tbb/blocked_range.h>
@@ -38,13 +39,6 @@ PreparedScene withoutPlanes(PreparedScene scene, const DetectionParams& p, std::
   return kept;
 }
 
-/// Most of a clique on scene points marked as explained by a detection (explain_score): the same object again.
-bool mostlyExplained(std::span<const Correspondence> clique, const std::vector<char>& explained) {
-  std::size_t taken = 0;
-  for (const Correspondence& c : clique) taken += explained[c.scene];
-  return 2 * taken > clique.size();
-}
-
 /// Appends the voters (may_vote) among the points of `group` not yet removed, when there are at
 /// least `min_size` such points (fewer: the sub-group will not run).
 void appendLiveVoters(std::span<const std::uint32_t> group, const std::vector<char>& removed, const std::vector<char>& may_vote,
@@ -65,6 +59,8 @@ struct GroupOutcome {
   std::vector<std::uint32_t> members;      ///< its points not removed when it ran
   bool ran = false;                        ///< enough members to vote
   std::vector<Correspondence> clique;      ///< the clique's pairs (empty: no pose)
+  std::vector<Pose> poses;                 ///< the clique's closed-form pose, then its alternatives
+  bool seen = false;                       ///< one of them is a pose already found (see Matcher::seen)
   bool screened_out = false;               ///< the pose failed the pre-screen
   Hypothesis hypothesis;                   ///< refined and scored (when the clique gave a pose that passed)
   double vote_ms = 0, match_ms = 0, refine_ms = 0;  ///< the thread's time in each stage
@@ -98,18 +94,22 @@ struct Matcher {
   const SceneEvidence& evidence;
   const NeighbourhoodVoter* local;  ///< the local votes (null: each sub-group votes, 4.3)
   const Orbits* orbits;             ///< a body of revolution's (null: matched point to point)
+  /// True when a pose is another of an object already found (explain_score): its clique is not
+  /// verified again.
+  std::function<bool(const Pose&)> seen;
 
   /// Votes (4.3-4.4), clique (4.5), pose (4.6), pre-screen, ICP and score of one sub-group,
-  /// with the scene points not yet removed. The pose, ICP and score depend on the clique's
+  /// with the scene points not yet removed. A clique whose pose (or one of its alternatives) is
+  /// seen() is not verified: it stays so when taken. The pose, ICP and score depend on the clique's
   /// pairs alone: when `earlier` (a run of the same sub-group with more points) found the same
   /// clique, its verdict is taken instead of verifying again. `parallel`: votes with it instead
   /// of the slot's voter, on all cores (a sub-group run again on its own).
-  void run(std::span<const std::uint32_t> group, const std::vector<char>& removed, const std::vector<char>& explained,
-           Slot& s, const GroupOutcome* earlier = nullptr, ParallelVoter* parallel = nullptr) const {
+  void run(std::span<const std::uint32_t> group, const std::vector<char>& removed, Slot& s, const GroupOutcome* earlier = nullptr, ParallelVoter* parallel = nullptr) const {
     GroupOutcome& out = s.outcome;
     out.members.clear();
     out.clique.clear();
-    out.ran = out.screened_out = false;
+    out.poses.clear();
+    out.ran = out.screened_out = out.seen = false;
     out.hypothesis = {};
     out.vote_ms = out.match_ms = out.refine_ms = 0;
     for (const auto i : group)
@@ -134,7 +134,10 @@ struct Matcher {
     }
     const auto t_refine = Clock::now();
     out.match_ms = msSince(t_match);
-    if (p.verify && mostlyExplained(out.clique, explained)) return;  // it stays so: not verified when taken
+    if (p.verify && std::any_of(out.poses.begin(), out.poses.end(), seen)) {
+      out.seen = true;
+      return;
+    }
     if (earlier != nullptr && earlier->clique == out.clique) {
       out.screened_out = earlier->screened_out;
       out.hypothesis = earlier->hypothesis;
@@ -175,6 +178,8 @@ struct Matcher {
     }
     if (!fit.ok) return false;
     for (const int v : clique.vertices) s.outcome.clique.push_back(s.candidates[v]);
+    s.outcome.poses.push_back(fit.pose);
+    s.outcome.poses.insert(s.outcome.poses.end(), s.alternatives.begin(), s.alternatives.end());
     s.outcome.hypothesis.detection = Detection{fit.pose, 0.0f, static_cast<int>(clique.vertices.size()), fit.rms};
     return true;
   }
@@ -234,6 +239,18 @@ bool Detector::nearModel(const Vec3& x, float distance) const {
   std::uint32_t j;
   float d2;
   return model_tree_.nearest(x, j, d2) && d2 <= distance * distance;
+}
+
+bool Detector::samePose(const Pose& a, const Pose& b) const {
+  const float tolerance = 0.1f * db_.model().diameter;  // the usual correctness radius (ADD < 0.1 d)
+  if ((a * model_centroid_ - b * model_centroid_).squaredNorm() > tolerance * tolerance) return false;
+  if (orbits_) {  // the turn about the axis is free: the axis's end moves model_radius_ times its change
+    const Vec3& axis = orbits_->axis.direction;
+    return model_radius_ * (a.linear() * axis - b.linear() * axis).norm() <= tolerance;
+  }
+  // A turn by angle t moves a point at distance r from its axis by 2 r sin(t / 2).
+  const float turn = Eigen::AngleAxisf(a.linear().transpose() * b.linear()).angle();
+  return 2.0f * model_radius_ * std::sin(0.5f * turn) <= tolerance;
 }
 
 bool Detector::mostlyOverlaps(const Pose& a, const Pose& b) const {
@@ -319,10 +336,13 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   result.timing.preprocess_ms = msSince(t0) - vote_setup_ms;  // the voters' setup counts as voting
   double vote_ms = vote_setup_ms;  // the setup, then the local votes of each batch
 
-  const Matcher matcher{db_, p, icp_model_, scene, scan, scan_grid, evidence, local.get(), orbits()};
+  std::vector<Pose> found;  // poses of the detections scoring at least explain_score, or removal_score
+  auto seen = [&](const Pose& pose) {
+    return std::any_of(found.begin(), found.end(), [&](const Pose& f) { return samePose(pose, f); });
+  };
+  const Matcher matcher{db_, p, icp_model_, scene, scan, scan_grid, evidence, local.get(), orbits(), seen};
   std::vector<char> removed(scene.points.size(), 0);
   std::vector<Hypothesis> hypotheses;
-  std::vector<char> explained(scene.points.size(), 0);  // scene points on a detection scoring >= explain_score
   int confident = 0;  // detections that removed their points
   bool enough = false;
 
@@ -332,23 +352,21 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
     if (!o.ran) return;
     ++result.subgroups_run;
     if (o.clique.empty()) return;
-    if (p.verify && mostlyExplained(o.clique, explained)) return;
+    if (p.verify && (o.seen || std::any_of(o.poses.begin(), o.poses.end(), seen))) return;  // that object again
     ++result.hypotheses;
     if (o.screened_out) return;
     ++result.refined;
     const Detection det = o.hypothesis.detection;
     if (p.verify && det.score < p.min_score) return;
     const bool remove = det.score >= p.removal_score;
-    if (remove || det.score >= p.explain_score) {
-      // 5.2.6, eq. 39: the scene points within sigma_dist of the posed model are removed; below
-      // removal_score, those within 2 verify_tolerance of it are only marked as explained.
+    if (remove || det.score >= p.explain_score) found.push_back(det.pose);
+    if (remove) {  // 5.2.6, eq. 39: the scene points within sigma_dist of the posed model are removed
       const Pose inverse = det.pose.inverse();
       const Vec3 centre = det.pose * model_centroid_;
-      const float near = remove ? p.sigma_dist : 2.0f * p.verify_tolerance;
-      const float reach = model_radius_ + near;
+      const float reach = model_radius_ + p.sigma_dist;
       for (std::size_t i = 0; i < scene.points.size(); ++i) {
         if (removed[i] || (scene.points[i] - centre).squaredNorm() > reach * reach) continue;
-        if (nearModel(inverse * scene.points[i], near)) (remove ? removed : explained)[i] = 1;
+        if (nearModel(inverse * scene.points[i], p.sigma_dist)) removed[i] = 1;
       }
     }
     hypotheses.push_back(std::move(o.hypothesis));
@@ -387,7 +405,7 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
       // Isolated: a thread waiting inside a nested loop (graph, ICP) takes up no other sub-group
       // meanwhile, which would hold up its own.
       for (std::size_t g = range.begin(); g < range.end(); ++g)
-        tbb::this_task_arena::isolate([&] { matcher.run(groups[g], removed, explained, slots[g - next]); });
+        tbb::this_task_arena::isolate([&] { matcher.run(groups[g], removed, slots[g - next]); });
     }, tbb::simple_partitioner());
     work_ms += msSince(t_work);
     for (std::size_t g = next; g < end && !enough; ++g) {
@@ -395,7 +413,7 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
       if (std::any_of(slot.outcome.members.begin(), slot.outcome.members.end(), [&](std::uint32_t i) { return removed[i] != 0; })) {
         const auto t_again = Clock::now();
         std::swap(earlier, slot.outcome);
-        matcher.run(groups[g], removed, explained, slot, &earlier, &parallel);
+        matcher.run(groups[g], removed, slot, &earlier, &parallel);
         work_ms += msSince(t_again);
       }
       group_vote_ms += slot.outcome.vote_ms;

@@ -61,6 +61,11 @@ class Detector {
   /// True when over half of the model's points (the ICP share of them), posed by `a`, lie
   /// within 0.1 diameter of the model posed by `b`.
   [[nodiscard]] bool mostlyOverlaps(const Pose& a, const Pose& b) const;
+  /// True when poses `a` and `b` put the model in nearly the same place: the centroids within 0.1
+  /// diameter of each other, and the turn between them moving no point of the model (within
+  /// model_radius_ of the centroid) by more than that; for a body of revolution, the turn of its
+  /// axis only. A near-symmetric flip of a part is another pose, not the same.
+  [[nodiscard]] bool samePose(const Pose& a, const Pose& b) const;
   /// True when x (in the model's frame) lies within `distance` of a model point. A point that
   /// far outside the model's bounding box is answered without a tree query.
   [[nodiscard]] bool nearModel(const Vec3& x, float distance) const;

@@ -89,12 +89,13 @@ struct DetectionParams {
   /// certain one leaves them for later sub-groups, and overlap suppression keeps the better pose.
   /// 0 removes after every detection, as the thesis does.
   float removal_score = 0.8f;
-  /// A detection scoring at least this (and less than removal_score) marks the scene points
-  /// within 2 verify_tolerance of its posed model as explained: a later clique with most of its
-  /// points on them is not verified again (a cap seen in part, found by each of the sub-groups
-  /// over it, was refined up to ten times). Too low, and a wrong pose of a part (0.39 on a test
-  /// scene of IPD obj 0) hides the right one (`fast` takes 0.3, measured in params.cpp).
-  float explain_score = 0.5f;
+  /// A detection scoring at least this (or removal_score) is a found object: a later clique
+  /// whose closed-form pose puts the model in nearly the same place (centroid within 0.1
+  /// diameter, no model point turned further) is not verified again (a cap seen in part, found
+  /// by each of the sub-groups over it, was refined up to ten times). A different pose of the
+  /// same place (a flip, say) is still verified, and the better one kept: a wrong pose found
+  /// first does not hide the right one.
+  float explain_score = 0.3f;
 
   // --- limits and determinism --------------------------------------------------------------
   int max_instances = 0;  ///< stop after this many confident detections, report at most this many (0: no limit)
