@@ -104,7 +104,8 @@ struct Matcher {
   /// pairs alone: when `earlier` (a run of the same sub-group with more points) found the same
   /// clique, its verdict is taken instead of verifying again. `parallel`: votes with it instead
   /// of the slot's voter, on all cores (a sub-group run again on its own).
-  void run(std::span<const std::uint32_t> group, const std::vector<char>& removed, Slot& s, const GroupOutcome* earlier = nullptr, ParallelVoter* parallel = nullptr) const {
+  void run(std::span<const std::uint32_t> group, const std::vector<char>& removed, Slot& s,
+           const GroupOutcome* earlier = nullptr, ParallelVoter* parallel = nullptr) const {
     GroupOutcome& out = s.outcome;
     out.members.clear();
     out.clique.clear();
