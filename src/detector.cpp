@@ -60,7 +60,7 @@ struct GroupOutcome {
   bool ran = false;                        ///< enough members to vote
   std::vector<Correspondence> clique;      ///< the clique's pairs (empty: no pose)
   std::vector<Pose> poses;                 ///< the clique's closed-form pose, then its alternatives
-  bool seen = false;                       ///< one of them is a pose already found (see Matcher::seen)
+                                           ///< (a body of revolution's other axis sign)
   bool screened_out = false;               ///< the pose failed the pre-screen
   Hypothesis hypothesis;                   ///< refined and scored (when the clique gave a pose that passed)
   double vote_ms = 0, match_ms = 0, refine_ms = 0;  ///< the thread's time in each stage
@@ -79,7 +79,6 @@ struct Slot {
   std::vector<Correspondence> candidates;
   Points clique_model, clique_scene, clique_normals;
   std::vector<std::uint32_t> clique_ids;
-  std::vector<Pose> alternatives;  ///< other poses of the clique (a body of revolution's other axis sign)
   GroupOutcome outcome;
 };
 
@@ -110,7 +109,7 @@ struct Matcher {
     out.members.clear();
     out.clique.clear();
     out.poses.clear();
-    out.ran = out.screened_out = out.seen = false;
+    out.ran = out.screened_out = false;
     out.hypothesis = {};
     out.vote_ms = out.match_ms = out.refine_ms = 0;
     for (const auto i : group)
@@ -135,10 +134,7 @@ struct Matcher {
     }
     const auto t_refine = Clock::now();
     out.match_ms = msSince(t_match);
-    if (p.verify && std::any_of(out.poses.begin(), out.poses.end(), seen)) {
-      out.seen = true;
-      return;
-    }
+    if (p.verify && std::any_of(out.poses.begin(), out.poses.end(), seen)) return;  // still seen when taken
     if (earlier != nullptr && earlier->clique == out.clique) {
       out.screened_out = earlier->screened_out;
       out.hypothesis = earlier->hypothesis;
@@ -160,8 +156,8 @@ struct Matcher {
     if (clique.vertices.size() < static_cast<std::size_t>(p.C_n)) return false;
     s.clique_scene.clear();
     for (const int v : clique.vertices) s.clique_scene.push_back(scene.points[s.candidates[v].scene]);
-    s.alternatives.clear();
     PoseFit fit;
+    std::vector<PoseFit> fits;  // a body of revolution's: the first, then the other axis sign, if any
     if (orbits != nullptr) {  // the axis of the clique's orbits; the other axis sign, if any, kept for the scan
       s.clique_normals.clear();
       s.clique_ids.clear();
@@ -169,9 +165,8 @@ struct Matcher {
         s.clique_normals.push_back(scene.normals[s.candidates[v].scene]);
         s.clique_ids.push_back(s.candidates[v].model);
       }
-      const auto fits = solveRevolutionPoses(*orbits, s.clique_ids, model, s.clique_scene, s.clique_normals);
+      fits = solveRevolutionPoses(*orbits, s.clique_ids, model, s.clique_scene, s.clique_normals);
       if (!fits.empty()) fit = fits.front();
-      for (std::size_t f = 1; f < fits.size(); ++f) s.alternatives.push_back(fits[f].pose);
     } else {
       s.clique_model.clear();
       for (const int v : clique.vertices) s.clique_model.push_back(model[s.candidates[v].model]);
@@ -180,7 +175,7 @@ struct Matcher {
     if (!fit.ok) return false;
     for (const int v : clique.vertices) s.outcome.clique.push_back(s.candidates[v]);
     s.outcome.poses.push_back(fit.pose);
-    s.outcome.poses.insert(s.outcome.poses.end(), s.alternatives.begin(), s.alternatives.end());
+    for (std::size_t f = 1; f < fits.size(); ++f) s.outcome.poses.push_back(fits[f].pose);
     s.outcome.hypothesis.detection = Detection{fit.pose, 0.0f, static_cast<int>(clique.vertices.size()), fit.rms};
     return true;
   }
@@ -193,8 +188,9 @@ struct Matcher {
       return evidence.evaluate(pose, icp_model.points, icp_model.normals, p.icp_max_distance, 0.0f).score();
     };
     if (p.verify) {  // the scan decides between a clique's poses, and screens out one far from it
-      float best = p.prescreen || !s.alternatives.empty() ? prescore(det.pose) : 1.0f;
-      for (const Pose& other : s.alternatives)
+      const auto alternatives = std::span<const Pose>(s.outcome.poses).subspan(1);
+      float best = p.prescreen || !alternatives.empty() ? prescore(det.pose) : 1.0f;
+      for (const Pose& other : alternatives)
         if (const float score = prescore(other); score > best) {
           best = score;
           det.pose = other;
@@ -353,7 +349,7 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
     if (!o.ran) return;
     ++result.subgroups_run;
     if (o.clique.empty()) return;
-    if (p.verify && (o.seen || std::any_of(o.poses.begin(), o.poses.end(), seen))) return;  // that object again
+    if (p.verify && std::any_of(o.poses.begin(), o.poses.end(), seen)) return;  // that object again
     ++result.hypotheses;
     if (o.screened_out) return;
     ++result.refined;
