@@ -292,10 +292,13 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   const DetectionParams& p = params_;
   const Points& model = db_.model().points;
 
-  // The scan's grid (one core) is built while the other core sub-samples.
+  // The scan's grid (one core) is built while the other core sub-samples. A depth image's cells
+  // are sized from its pixel neighbours' spacing (no first grid to estimate it); any size gives
+  // the same answers.
   std::optional<PointGrid> grid;
   std::vector<std::uint32_t> chosen;
-  tbb::parallel_invoke([&] { grid.emplace(scan.points); }, [&] { chosen = subsampleScene(scan.points, p); });
+  tbb::parallel_invoke([&] { grid.emplace(scan.points, 2.0f * pixelSpacing(scan)); },
+                       [&] { chosen = subsampleScene(scan.points, p); });
   const PointGrid& scan_grid = *grid;
   PreparedScene scene = prepareScene(scan.points, scan_grid, chosen, p);
   result.sampled_points = scene.points.size();

@@ -55,6 +55,32 @@ void robustBox(const Points& points, std::size_t finite, Vec3& lo, Vec3& hi) {
 
 }  // namespace
 
+float pixelSpacing(const PointCloud& cloud) {
+  if (!cloud.organized() || cloud.pixel.size() != cloud.size() || cloud.size() < 2) return 0.0f;
+  const auto w = static_cast<std::int64_t>(cloud.width), pixels = w * cloud.height;
+  // Each point's pixel is its index in the row-major image, and the cloud keeps the image's
+  // order (depthToCloud, readPcd): a neighbour pixel's point is found by a binary search.
+  if (!std::is_sorted(cloud.pixel.begin(), cloud.pixel.end())) return 0.0f;
+  const auto pointAt = [&](std::int64_t px) -> const Vec3* {
+    if (px < 0 || px >= pixels) return nullptr;
+    const auto it = std::lower_bound(cloud.pixel.begin(), cloud.pixel.end(), static_cast<std::int32_t>(px));
+    return it != cloud.pixel.end() && *it == px ? &cloud.points[static_cast<std::size_t>(it - cloud.pixel.begin())] : nullptr;
+  };
+  std::vector<float> spacing;
+  const std::size_t step = std::max<std::size_t>(1, cloud.size() / 500);
+  for (std::size_t s = 0; s < cloud.size(); s += step) {
+    const Vec3& p = cloud.points[s];
+    const std::int64_t px = cloud.pixel[s];
+    float best = INFINITY;
+    for (const std::int64_t n : {px % w > 0 ? px - 1 : -1, px % w + 1 < w ? px + 1 : -1, px - w, px + w})
+      if (const Vec3* q = pointAt(n); q != nullptr && *q != p) best = std::min(best, (*q - p).squaredNorm());
+    if (std::isfinite(best)) spacing.push_back(std::sqrt(best));
+  }
+  if (spacing.size() < 10) return 0.0f;
+  std::nth_element(spacing.begin(), spacing.begin() + static_cast<long>(spacing.size() / 2), spacing.end());
+  return spacing[spacing.size() / 2];
+}
+
 PointGrid::PointGrid(const Points& points, float cell) {
   if (cell > 0 && std::isfinite(cell)) {
     build(points, cell);

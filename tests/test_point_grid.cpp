@@ -153,3 +153,33 @@ TEST(PointGrid, AFarOutlierDoesNotExplodeTheGrid) {
   ASSERT_EQ(grid.knn(Vec3(1e7f, -1e7f, 1e7f + 1), 1, idx, dd), 1u);
   EXPECT_EQ(idx[0], points.size() - 1);
 }
+
+TEST(PointGrid, PixelSpacingIsTheNeighbourPitchOfADepthImage) {
+  // A 100 x 80 depth image of a plane seen head-on at a 0.8 mm pitch, a tenth of its pixels
+  // missing (not in the cloud), and a copy whose row pitch is 2 mm: the nearest pixel neighbour
+  // lies along the row, so the spacing is the column pitch.
+  for (const float row_pitch : {0.8f, 2.0f}) {
+    PointCloud cloud;
+    cloud.width = 100;
+    cloud.height = 80;
+    Rng rng(3);
+    for (int v = 0; v < cloud.height; ++v)
+      for (int u = 0; u < cloud.width; ++u) {
+        if (rng.uniform() < 0.1) continue;
+        cloud.points.emplace_back(0.8f * float(u), row_pitch * float(v), 500.0f);
+        cloud.pixel.push_back(v * cloud.width + u);
+      }
+    EXPECT_NEAR(pixelSpacing(cloud), 0.8f, 1e-4f) << row_pitch;
+    // The grid sized from it answers as the grid that estimates its own cell.
+    const PointGrid sized(cloud.points, 2.0f * pixelSpacing(cloud)), estimated(cloud.points);
+    std::uint32_t a[8], b[8];
+    float da[8], db[8];
+    for (std::size_t i = 0; i < cloud.size(); i += 37) {
+      ASSERT_EQ(sized.knn(cloud.points[i], 8, a, da), estimated.knn(cloud.points[i], 8, b, db));
+      EXPECT_TRUE(std::equal(a, a + 8, b)) << i;
+    }
+  }
+  PointCloud unorganized;
+  unorganized.points = scanLike();
+  EXPECT_EQ(pixelSpacing(unorganized), 0.0f);  // no pixels: the grid estimates its own cell
+}

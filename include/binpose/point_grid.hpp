@@ -12,6 +12,12 @@
 
 namespace binpose {
 
+/// An organized cloud's point spacing without a search: the median, over a sample of its points,
+/// of the distance to the nearest of the four pixel neighbours (about the median nearest-neighbour
+/// spacing PointGrid estimates with a first grid). 0 when the cloud is not organized with one
+/// pixel per point, or too few sampled points have a neighbour.
+float pixelSpacing(const PointCloud& cloud);
+
 class PointGrid {
  public:
   /// Cubic cells of side `cell` (mm; 0: twice the median nearest-neighbour spacing, estimated on
