@@ -150,6 +150,48 @@ void addBitsAvx2(std::uint8_t*, const std::uint64_t*, std::size_t, std::uint8_t)
 bool haveAvx2() { return false; }
 #endif
 
+// The accumulator's scans, 8 counters to an SSE4.1 step where the build has it (x86-64-v2 and
+// up; GCC's -O2 leaves these loops scalar): 2.2 and 2.1 us a 4000-point accumulator scalar.
+
+/// The largest count.
+std::uint16_t largestVote(std::span<const std::uint16_t> votes) {
+  std::size_t i = 0;
+  std::uint16_t top = 0;
+#if defined(__SSE4_1__)
+  __m128i most = _mm_setzero_si128();
+  for (; i + 8 <= votes.size(); i += 8)
+    most = _mm_max_epu16(most, _mm_loadu_si128(reinterpret_cast<const __m128i*>(votes.data() + i)));
+  // The largest lane: the smallest of the complements (phminposuw).
+  top = static_cast<std::uint16_t>(0xFFFF - _mm_extract_epi16(_mm_minpos_epu16(_mm_xor_si128(most, _mm_set1_epi16(-1))), 0));
+#endif
+  for (; i < votes.size(); ++i) top = std::max(top, votes[i]);
+  return top;
+}
+
+/// The indices of the counts above `above` (< 65535), ascending, into `out` (cleared).
+void votesAbove(std::span<const std::uint16_t> votes, std::uint16_t above, std::vector<std::size_t>& out) {
+  out.clear();
+  std::size_t i = 0;
+#if defined(__SSE4_1__)
+  // 32 counters tested at once (v > above <=> max(v, above + 1) == v).
+  const __m128i least = _mm_set1_epi16(static_cast<short>(above + 1));
+  auto over = [&](std::size_t at) {
+    const __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(votes.data() + at));
+    return _mm_cmpeq_epi16(_mm_max_epu16(v, least), v);
+  };
+  for (; i + 32 <= votes.size(); i += 32) {
+    // The lanes' all-ones or zeros packed to bytes, a bit per counter: the set bits are taken
+    // in order without a branch per counter.
+    const auto low = static_cast<std::uint32_t>(_mm_movemask_epi8(_mm_packs_epi16(over(i), over(i + 8))));
+    const auto high = static_cast<std::uint32_t>(_mm_movemask_epi8(_mm_packs_epi16(over(i + 16), over(i + 24))));
+    for (std::uint32_t bits = low | (high << 16); bits != 0; bits &= bits - 1)
+      out.push_back(i + static_cast<std::size_t>(std::countr_zero(bits)));
+  }
+#endif
+  for (; i < votes.size(); ++i)
+    if (votes[i] > above) out.push_back(i);
+}
+
 }  // namespace
 
 void Voter::countDense(std::span<const std::uint64_t> bits, std::uint16_t times) {
@@ -227,8 +269,7 @@ void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t
 void Voter::select(std::uint32_t k, std::vector<Correspondence>& out) {
   // A_k is the model points with a vote (eq. 9-10): its histogram is the accumulator's without
   // the zeros. Four histograms side by side, so that runs of equal votes do not wait on each other.
-  std::uint16_t top = 0;
-  for (const auto v : votes_) top = std::max(top, v);
+  const std::uint16_t top = largestVote(votes_);
   if (top == 0) return;
   const std::size_t bins = std::size_t{top} + 1;
   histogram_.assign(4 * bins, 0);
@@ -243,18 +284,7 @@ void Voter::select(std::uint32_t k, std::vector<Correspondence>& out) {
   const double limit = outlierLimit(std::span<const std::uint32_t>(histogram_.data(), bins));
   if (!(top > limit)) return;  // eq. 11: no upper outlier, no candidate
   const auto above = static_cast<std::uint16_t>(limit);  // votes are whole: v > limit <=> v > floor(limit)
-  outliers_.clear();
-  constexpr std::size_t kChunk = 32;  // a branch-free test of a chunk (SIMD lanes), then its outliers: few chunks hold one
-  id = 0;
-  for (; id + kChunk <= n; id += kChunk) {
-    bool any = false;
-    for (std::size_t c = 0; c < kChunk; ++c) any |= votes_[id + c] > above;
-    if (!any) continue;
-    for (std::size_t c = id; c < id + kChunk; ++c)
-      if (votes_[c] > above) outliers_.push_back(c);
-  }
-  for (; id < n; ++id)
-    if (votes_[id] > above) outliers_.push_back(id);
+  votesAbove(votes_, above, outliers_);
   const auto value = [this](std::size_t m) { return std::uint32_t{votes_[m]}; };
   // A body of revolution's accumulator is over its orbits: each one's first point stands for it.
   const auto model_point = [this](std::size_t m) {

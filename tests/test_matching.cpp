@@ -1,5 +1,6 @@
 // Fourth-spread selection (4.4), maximum clique (4.5) and pose (4.6) against known answers.
 #include <binpose/clique.hpp>
+#include <binpose/features.hpp>
 #include <binpose/geometry.hpp>
 #include <binpose/pose.hpp>
 #include <binpose/model.hpp>
@@ -355,6 +356,39 @@ TEST(Voting, BitsetCountingGivesTheSameCandidates) {
     by_points.vote(points, normals, group, b);
     ASSERT_GT(a.size(), group.size());
     EXPECT_EQ(a, b);
+  }
+}
+
+TEST(Voting, VoterSelectsTheUpperOutliersOfItsCounts) {
+  // Each point's accumulator counted here, one feature at a time from the table's lists (eq. 9),
+  // and its candidates chosen by selectCandidates (eq. 10-12): the Voter's (sorted keys, bitsets,
+  // vector scans of the accumulator) must be the same.
+  const auto [points, normals, group] = wholePart(31);
+  const ModelDatabase& db = lDatabase();
+  for (const int keep : {1, 12}) {
+    Voter voter(db, keep);
+    int with_candidates = 0;
+    for (std::uint32_t k = 0; k < points.size(); k += 5) {
+      std::vector<std::uint32_t> counts(db.model().points.size(), 0);
+      for (const std::uint32_t o : group) {
+        PairFeature f;
+        if (o == k || !computeFeature(points[k], normals[k], points[o], normals[o], f)) continue;
+        for (const auto m : db.lookup(db.keySpace().key(f))) ++counts[m];
+      }
+      std::vector<std::size_t> expected = selectCandidates(counts, keep);
+      if (keep > 1)  // selectCandidates gives them best first; with keep 1, the ties in index order
+        ASSERT_TRUE(std::is_sorted(expected.begin(), expected.end(),
+                                   [&](std::size_t a, std::size_t b) { return counts[a] > counts[b]; }));
+      std::vector<Correspondence> got;
+      voter.votePoint(points, normals, k, group, got);
+      ASSERT_EQ(got.size(), expected.size()) << k;
+      for (std::size_t c = 0; c < got.size(); ++c) {
+        EXPECT_EQ(got[c].scene, k);
+        EXPECT_EQ(got[c].model, expected[c]) << k;
+      }
+      with_candidates += !got.empty();
+    }
+    EXPECT_GT(with_candidates, 20) << keep;
   }
 }
 
