@@ -238,8 +238,8 @@ bool Detector::nearModel(const Vec3& x, float distance) const {
   return model_tree_.nearest(x, j, d2) && d2 <= distance * distance;
 }
 
-bool Detector::samePose(const Pose& a, const Pose& b) const {
-  const float tolerance = 0.1f * db_.model().diameter;  // the usual correctness radius (ADD < 0.1 d)
+bool Detector::samePose(const Pose& a, const Pose& b, float share) const {
+  const float tolerance = share * 0.1f * db_.model().diameter;  // the usual correctness radius (ADD < 0.1 d)
   if ((a * model_centroid_ - b * model_centroid_).squaredNorm() > tolerance * tolerance) return false;
   if (orbits_) {  // the turn about the axis is free: the axis's end moves model_radius_ times its change
     const Vec3& axis = orbits_->axis.direction;
@@ -337,8 +337,11 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   double vote_ms = vote_setup_ms;  // the setup, then the local votes of each batch
 
   std::vector<Pose> found;  // poses of the detections scoring at least explain_score, or removal_score
+  std::vector<Pose> tried;  // the closed-form poses of the cliques verified (tried_share)
   auto seen = [&](const Pose& pose) {
-    return std::any_of(found.begin(), found.end(), [&](const Pose& f) { return samePose(pose, f); });
+    return std::any_of(found.begin(), found.end(), [&](const Pose& f) { return samePose(pose, f); }) ||
+           (p.tried_share > 0 &&
+            std::any_of(tried.begin(), tried.end(), [&](const Pose& t) { return samePose(pose, t, p.tried_share); }));
   };
   const Matcher matcher{db_, p, icp_model_, scene, scan, scan_grid, evidence, local.get(), orbits(), seen};
   std::vector<char> removed(scene.points.size(), 0);
@@ -354,6 +357,7 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
     if (o.clique.empty()) return;
     if (p.verify && std::any_of(o.poses.begin(), o.poses.end(), seen)) return;  // that object again
     ++result.hypotheses;
+    if (p.tried_share > 0) tried.insert(tried.end(), o.poses.begin(), o.poses.end());
     if (o.screened_out) return;
     ++result.refined;
     const Detection det = o.hypothesis.detection;

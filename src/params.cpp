@@ -53,6 +53,7 @@ void visit(json& j, DetectionParams& p, bool write) {
   field(j, "min_score", p.min_score, write);
   field(j, "removal_score", p.removal_score, write);
   field(j, "explain_score", p.explain_score, write);
+  field(j, "tried_share", p.tried_share, write);
   field(j, "max_instances", p.max_instances, write);
   field(j, "clique_work_limit", p.clique_work_limit, write);
   field(j, "seed", p.seed, write);
@@ -177,6 +178,7 @@ void validate(const DetectionParams& p) {
   if (!(p.min_score >= 0 && p.min_score <= 1)) throw Error(fmt::format("min_score must lie in [0, 1], got {}", p.min_score));
   if (!(p.removal_score >= 0 && p.removal_score <= 1)) throw Error(fmt::format("removal_score must lie in [0, 1], got {}", p.removal_score));
   if (!(p.explain_score >= 0 && p.explain_score <= 1)) throw Error(fmt::format("explain_score must lie in [0, 1], got {}", p.explain_score));
+  if (!(p.tried_share >= 0 && p.tried_share <= 1)) throw Error(fmt::format("tried_share must lie in [0, 1], got {}", p.tried_share));
   if (p.candidates_per_point < 1 || p.candidates_per_point > 64)
     throw Error(fmt::format("candidates_per_point must lie in [1, 64], got {}", p.candidates_per_point));
   if (!(p.max_key_share > 0 && p.max_key_share <= 1)) throw Error(fmt::format("max_key_share must lie in (0, 1], got {}", p.max_key_share));

@@ -115,15 +115,31 @@ TEST(Detector, SameResultWhateverTheThreadCount) {
 // that a detection of its batch took points from runs again. A simulated bin of sixteen caps
 // makes that happen and change what those sub-groups find: the counts and poses must still be
 // those of one thread.
+namespace {
+
+/// A simulated bin of sixteen built-in caps (seed 7) and the cap's database.
+struct CapBin {
+  ModelDatabase db;
+  SimulatedScene scene;
+};
+const CapBin& capBin() {
+  static const CapBin bin = [] {
+    const Mesh mesh = builtinPart("cap");
+    const OrientedModel model = prepareModel(mesh, ModelParams{});
+    SimulationParams sp;
+    sp.seed = 7;
+    return CapBin{ModelDatabase::build(model, defaultQuantization(model.diameter)), simulateBin(mesh, sp)};
+  }();
+  return bin;
+}
+
+}  // namespace
+
 TEST(Detector, BinGivesTheSameResultWhateverTheThreadCount) {
-  const Mesh mesh = builtinPart("cap");
-  const OrientedModel model = prepareModel(mesh, ModelParams{});
-  const ModelDatabase db = ModelDatabase::build(model, defaultQuantization(model.diameter));
-  SimulationParams sp;
-  sp.seed = 7;
-  const PointCloud scan = simulateBin(mesh, sp).cloud;
+  const ModelDatabase& db = capBin().db;
+  const PointCloud& scan = capBin().scene.cloud;
   for (const char* preset : {"default", "fast"}) {
-    const Detector detector(db, scaledToModel(presetByName(preset), model.diameter));
+    const Detector detector(db, scaledToModel(presetByName(preset), db.model().diameter));
     DetectionResult one;
     {
       tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
@@ -140,6 +156,33 @@ TEST(Detector, BinGivesTheSameResultWhateverTheThreadCount) {
       EXPECT_EQ(one.detections[i].score, many.detections[i].score);
     }
   }
+}
+
+// tried_share: a clique whose pose is close to one already verified is not verified again. On
+// the cap bin fewer poses are refined, and the same copies are found at the same places.
+TEST(Detector, CliquesNearATriedPoseAreNotVerifiedAgain) {
+  const ModelDatabase& db = capBin().db;
+  const SimulatedScene& bin = capBin().scene;
+  DetectionParams every = fastPreset();
+  every.tried_share = 0.0f;
+  const DetectionResult skipping = Detector(db, scaledToModel(fastPreset(), db.model().diameter)).detect(bin.cloud);
+  const DetectionResult all = Detector(db, scaledToModel(every, db.model().diameter)).detect(bin.cloud);
+  EXPECT_LT(skipping.refined, all.refined);
+  const Vec3 c = centroidOf(db.model().points);
+  auto rightCopies = [&](const DetectionResult& r) {  // copies found within 0.1 diameter
+    std::vector<int> copies;
+    for (std::size_t t = 0; t < bin.instances.size(); ++t)
+      for (const Detection& d : r.detections)
+        if (poseErrors(d.pose, bin.instances[t].pose, c).centroid_mm < 0.1f * db.model().diameter) {
+          copies.push_back(static_cast<int>(t));
+          break;
+        }
+    return copies;
+  };
+  const std::vector<int> found = rightCopies(skipping);
+  EXPECT_GE(found.size(), 8u);
+  EXPECT_EQ(found, rightCopies(all));
+  EXPECT_EQ(skipping.detections.size(), all.detections.size());
 }
 
 TEST(Detector, EmptySceneGivesNoDetection) {

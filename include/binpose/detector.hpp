@@ -64,8 +64,9 @@ class Detector {
   /// True when poses `a` and `b` put the model in nearly the same place: the centroids within 0.1
   /// diameter of each other, and the turn between them moving no point of the model (within
   /// model_radius_ of the centroid) by more than that; for a body of revolution, the turn of its
-  /// axis only. A near-symmetric flip of a part is another pose, not the same.
-  [[nodiscard]] bool samePose(const Pose& a, const Pose& b) const;
+  /// axis only. A near-symmetric flip of a part is another pose, not the same. `share` scales
+  /// that 0.1 diameter (tried_share's closer match).
+  [[nodiscard]] bool samePose(const Pose& a, const Pose& b, float share = 1.0f) const;
   /// True when x (in the model's frame) lies within `distance` of a model point. A point that
   /// far outside the model's bounding box is answered without a tree query.
   [[nodiscard]] bool nearModel(const Vec3& x, float distance) const;
