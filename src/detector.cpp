@@ -93,8 +93,8 @@ struct Matcher {
   const SceneEvidence& evidence;
   const NeighbourhoodVoter* local;  ///< the local votes (null: each sub-group votes, 4.3)
   const Orbits* orbits;             ///< a body of revolution's (null: matched point to point)
-  /// True when a pose is another of an object already found (explain_score): its clique is not
-  /// verified again.
+  /// True when a pose is another of an object already found (explain_score), or close to a
+  /// clique pose already verified (tried_share): its clique is not verified again.
   std::function<bool(const Pose&)> seen;
 
   /// Votes (4.3-4.4), clique (4.5), pose (4.6), pre-screen, ICP and score of one sub-group,
@@ -337,11 +337,10 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   double vote_ms = vote_setup_ms;  // the setup, then the local votes of each batch
 
   std::vector<Pose> found;  // poses of the detections scoring at least explain_score, or removal_score
-  std::vector<Pose> tried;  // the closed-form poses of the cliques verified (tried_share)
+  std::vector<Pose> tried;  // the closed-form poses of the cliques verified (empty when tried_share is 0)
   auto seen = [&](const Pose& pose) {
     return std::any_of(found.begin(), found.end(), [&](const Pose& f) { return samePose(pose, f); }) ||
-           (p.tried_share > 0 &&
-            std::any_of(tried.begin(), tried.end(), [&](const Pose& t) { return samePose(pose, t, p.tried_share); }));
+           std::any_of(tried.begin(), tried.end(), [&](const Pose& t) { return samePose(pose, t, p.tried_share); });
   };
   const Matcher matcher{db_, p, icp_model_, scene, scan, scan_grid, evidence, local.get(), orbits(), seen};
   std::vector<char> removed(scene.points.size(), 0);
