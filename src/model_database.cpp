@@ -161,7 +161,7 @@ ModelDatabase ModelDatabase::build(OrientedModel model, const QuantizationParams
 }
 
 void ModelDatabase::indexDenseLists() {
-  dense_words_ = (model_.points.size() + 63) / 64;
+  dense_words_ = 4 * ((model_.points.size() + 255) / 256);  // whole 256-bit blocks
   dense_slot_.assign(offsets_.empty() ? 0 : offsets_.size() - 1, kNoSlot);
   std::uint32_t slots = 0;
   for (std::size_t key = 0; key < dense_slot_.size(); ++key)

@@ -127,26 +127,97 @@ void Voter::countList(std::span<const ModelDatabase::PointId> ids, std::uint16_t
 namespace {
 
 #if defined(__x86_64__)
-/// acc[m] += times for each model point m set in `bits`, 32 points to an AVX2 step: each 32-bit
-/// chunk's bytes spread over the lanes, each lane tests its bit.
-__attribute__((target("avx2"))) void addBitsAvx2(std::uint8_t* acc, const std::uint64_t* bits, std::size_t words,
-                                                 std::uint8_t times) {
+#define BINPOSE_AVX2_INLINE __attribute__((target("avx2"), always_inline)) inline
+
+BINPOSE_AVX2_INLINE __m256i load256(const std::uint64_t* at) { return _mm256_loadu_si256(reinterpret_cast<const __m256i*>(at)); }
+
+/// Carry-save adder, bit by bit: a + b + c = sum + 2 carry.
+BINPOSE_AVX2_INLINE void carrySave(__m256i& sum, __m256i& carry, __m256i a, __m256i b, __m256i c) {
+  const __m256i u = _mm256_xor_si256(a, b);
+  sum = _mm256_xor_si256(u, c);
+  carry = _mm256_or_si256(_mm256_and_si256(a, b), _mm256_and_si256(u, c));
+}
+
+/// Adds x (one bit per counter) at bit `from` of 256 vertical counters held as NP bit planes
+/// (plane[p]: bit p of each counter), carrying up.
+template <int NP>
+BINPOSE_AVX2_INLINE void addAt(__m256i (&plane)[NP], __m256i x, int from) {
+#pragma GCC unroll 8
+  for (int p = from; p < NP; ++p) {
+    const __m256i carry = _mm256_and_si256(plane[p], x);
+    plane[p] = _mm256_xor_si256(plane[p], x);
+    x = carry;
+  }
+}
+
+/// votes[i] += the count of 256 vertical counters (np planes), 32 counters at a step: each
+/// plane's 32 bits spread over bytes, each byte testing its bit, weighted 2^p.
+__attribute__((target("avx2"))) void addPlanes(const __m256i* plane, int np, std::uint16_t* votes) {
+  alignas(32) std::uint32_t chunk[8][8];
+  for (int p = 0; p < np; ++p) _mm256_store_si256(reinterpret_cast<__m256i*>(chunk[p]), plane[p]);
   const __m256i spread = _mm256_setr_epi8(0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 1, 1, 1, 2, 2, 2, 2, 2, 2, 2, 2, 3, 3, 3,
                                           3, 3, 3, 3, 3);
   const __m256i bit = _mm256_set1_epi64x(static_cast<long long>(0x8040201008040201ull));
-  const __m256i add = _mm256_set1_epi8(static_cast<char>(times));
-  for (std::size_t k = 0; k < 2 * words; ++k) {
-    std::uint32_t chunk;
-    std::memcpy(&chunk, reinterpret_cast<const char*>(bits) + 4 * k, sizeof chunk);
-    const __m256i lanes = _mm256_shuffle_epi8(_mm256_set1_epi32(static_cast<int>(chunk)), spread);
-    const __m256i on = _mm256_cmpeq_epi8(_mm256_and_si256(lanes, bit), bit);
-    auto* at = reinterpret_cast<__m256i*>(acc + 32 * k);
-    _mm256_storeu_si256(at, _mm256_add_epi8(_mm256_loadu_si256(at), _mm256_and_si256(on, add)));
+  for (int c = 0; c < 8; ++c) {
+    __m256i sum = _mm256_setzero_si256();
+    for (int p = 0; p < np; ++p) {
+      const __m256i lanes = _mm256_shuffle_epi8(_mm256_set1_epi32(static_cast<int>(chunk[p][c])), spread);
+      const __m256i on = _mm256_cmpeq_epi8(_mm256_and_si256(lanes, bit), bit);
+      sum = _mm256_add_epi8(sum, _mm256_and_si256(on, _mm256_set1_epi8(static_cast<char>(1 << p))));
+    }
+    auto* at = reinterpret_cast<__m256i*>(votes + 32 * c);
+    _mm256_storeu_si256(at, _mm256_add_epi16(_mm256_loadu_si256(at), _mm256_cvtepu8_epi16(_mm256_castsi256_si128(sum))));
+    _mm256_storeu_si256(at + 1,
+                        _mm256_add_epi16(_mm256_loadu_si256(at + 1), _mm256_cvtepu8_epi16(_mm256_extracti128_si256(sum, 1))));
+  }
+}
+
+/// votes[m] += the number of the `count` (< 2^NP) bitsets holding m, 256 model points at a
+/// step: their counts kept as NP bit planes in registers (vertical counters), each bitset's
+/// 256 bits added in a few logic operations, four at a time through carry-save adders
+/// (Harley-Seal), the planes turned into counts once per step.
+template <int NP>
+__attribute__((target("avx2"))) void addBitsetsSliced(std::uint16_t* votes, const std::uint64_t* const* bits,
+                                                      std::size_t count, std::size_t blocks) {
+  for (std::size_t b = 0; b < blocks; ++b) {
+    __m256i plane[NP];
+    for (int p = 0; p < NP; ++p) plane[p] = _mm256_setzero_si256();
+    const std::size_t at = 4 * b;
+    std::size_t l = 0;
+    if constexpr (NP >= 3) {
+      for (; l + 4 <= count; l += 4) {
+        __m256i twos_a, twos_b, fours;
+        carrySave(plane[0], twos_a, plane[0], load256(bits[l] + at), load256(bits[l + 1] + at));
+        carrySave(plane[0], twos_b, plane[0], load256(bits[l + 2] + at), load256(bits[l + 3] + at));
+        carrySave(plane[1], fours, plane[1], twos_a, twos_b);
+        addAt<NP>(plane, fours, 2);
+      }
+    }
+    for (; l < count; ++l) addAt<NP>(plane, load256(bits[l] + at), 0);
+    addPlanes(plane, NP, votes + 256 * b);
+  }
+}
+
+/// The same for any count, 255 bitsets (8 planes) at a time.
+void addBitsets(std::uint16_t* votes, std::span<const std::uint64_t* const> bits, std::size_t blocks) {
+  for (std::size_t start = 0; start < bits.size(); start += 255) {
+    const std::size_t count = std::min<std::size_t>(255, bits.size() - start);
+    const std::uint64_t* const* from = bits.data() + start;
+    switch (std::bit_width(count)) {
+      case 1: addBitsetsSliced<1>(votes, from, count, blocks); break;
+      case 2: addBitsetsSliced<2>(votes, from, count, blocks); break;
+      case 3: addBitsetsSliced<3>(votes, from, count, blocks); break;
+      case 4: addBitsetsSliced<4>(votes, from, count, blocks); break;
+      case 5: addBitsetsSliced<5>(votes, from, count, blocks); break;
+      case 6: addBitsetsSliced<6>(votes, from, count, blocks); break;
+      case 7: addBitsetsSliced<7>(votes, from, count, blocks); break;
+      default: addBitsetsSliced<8>(votes, from, count, blocks); break;
+    }
   }
 }
 bool haveAvx2() { return __builtin_cpu_supports("avx2"); }
 #else
-void addBitsAvx2(std::uint8_t*, const std::uint64_t*, std::size_t, std::uint8_t) {}
+void addBitsets(std::uint16_t*, std::span<const std::uint64_t* const>, std::size_t) {}
 bool haveAvx2() { return false; }
 #endif
 
@@ -194,25 +265,19 @@ void votesAbove(std::span<const std::uint16_t> votes, std::uint16_t above, std::
 
 }  // namespace
 
-void Voter::countDense(std::span<const std::uint64_t> bits, std::uint16_t times) {
-  // Byte-sized counters, 32 added at a step: a list of an eighth of the model points or more
-  // costs less so than an increment per point (about 100 ns a list against 0.4 ns a point). No
-  // byte overflows: each holds at most dense_sum_ <= 255, flushed into votes_ before more.
-  if (dense_sum_ + times > 255) flushDense();
-  dense_sum_ += times;
-  addBitsAvx2(dense_.data(), bits.data(), bits.size(), static_cast<std::uint8_t>(times));
-}
-
-void Voter::flushDense() {
-  for (std::size_t m = 0; m < votes_.size(); ++m) votes_[m] = static_cast<std::uint16_t>(votes_[m] + dense_[m]);
-  std::fill(dense_.begin(), dense_.end(), std::uint8_t{0});
-  dense_sum_ = 0;
+void Voter::countDense() {
+  // Bitsets rather than id lists for the lists of a 32nd of the model points and more: with n_M
+  // = 4000, a list costs about 64 logic operations on 256-bit words and the points' counts
+  // about 1.5 operations a point, against about 1 ns a point listed (IPD obj 8's points each
+  // had 41 such lists, 31000 points in all).
+  if (!dense_lists_.empty()) addBitsets(votes_.data(), dense_lists_, votes_.size() / 256);
+  dense_lists_.clear();
 }
 
 Voter::Voter(const ModelDatabase& db, int keep, std::uint32_t max_list, float spacing, bool weigh_rare, const Orbits* orbits)
     : db_(db), keep_(keep), weigh_rare_(weigh_rare), max_list_(max_list), spacing_(spacing),
-      votes_(orbits != nullptr ? orbits->count : db.model().points.size(), 0),
-      dense_(64 * ((db.model().points.size() + 63) / 64), 0), bitsets_(orbits == nullptr && haveAvx2()), orbits_(orbits) {
+      counters_(orbits != nullptr ? orbits->count : db.model().points.size()),
+      votes_(256 * ((counters_ + 255) / 256), 0), bitsets_(orbits == nullptr && haveAvx2()), orbits_(orbits) {
   if (orbits_ != nullptr && orbits_->of.size() != db.model().points.size())
     throw Error(fmt::format("orbits of {} points for a model of {}", orbits_->of.size(), db.model().points.size()));
 }
@@ -241,39 +306,45 @@ void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t
     if (ids.empty() || ids.size() > max_list_) continue;  // a feature nearly every model point has: no information
     const std::uint32_t weight = weigh_rare_ ? std::min(most, keyWeight(n_model, ids.size())) : 1;
     const auto times = static_cast<std::uint16_t>((b - a) * weight);
-    if (orbits_ != nullptr) lists_.push_back({orbits_->lookup(keys_[a]), {}, times});  // the orbits of those points
-    else lists_.push_back({ids, bitsets_ && times <= 255 ? db_.denseBits(keys_[a]) : std::span<const std::uint64_t>{}, times});
+    if (orbits_ != nullptr) {
+      lists_.push_back({orbits_->lookup(keys_[a]), times});  // the orbits of those points
+      continue;
+    }
+    // A long list as its bitset, once per vote it adds (rarely more than once).
+    const auto bits = bitsets_ && times <= kMostBitsetRepeats ? db_.denseBits(keys_[a]) : std::span<const std::uint64_t>{};
+    if (bits.empty()) {
+      lists_.push_back({ids, times});
+      continue;
+    }
+    for (std::size_t at = 0; at < bits.size(); at += 8) __builtin_prefetch(bits.data() + at);
+    dense_lists_.insert(dense_lists_.end(), times, bits.data());
   }
   // The lists lie far apart in the table: each one's first lines are fetched while the lists
   // before it are counted (the table does not fit in the cache; the misses were half the time).
   constexpr std::size_t kAhead = 4;
   auto prefetch = [&](std::size_t l) {
     const auto ids = lists_[l].ids;
-    const auto bits = lists_[l].bits;
-    if (!bits.empty())
-      for (std::size_t at = 0; at < bits.size(); at += 8) __builtin_prefetch(bits.data() + at);
-    else
-      for (std::size_t at = 0; at < std::min<std::size_t>(ids.size(), 128); at += 32) __builtin_prefetch(ids.data() + at);
+    for (std::size_t at = 0; at < std::min<std::size_t>(ids.size(), 128); at += 32) __builtin_prefetch(ids.data() + at);
   };
   for (std::size_t l = 0; l < std::min(kAhead, lists_.size()); ++l) prefetch(l);
   for (std::size_t l = 0; l < lists_.size(); ++l) {
     if (l + kAhead < lists_.size()) prefetch(l + kAhead);
-    if (lists_[l].bits.empty()) countList(lists_[l].ids, lists_[l].times);
-    else countDense(lists_[l].bits, lists_[l].times);
+    countList(lists_[l].ids, lists_[l].times);
   }
-  if (dense_sum_ > 0) flushDense();
+  countDense();
   select(k, out);
-  std::fill(votes_.begin(), votes_.end(), std::uint16_t{0});
+  std::fill_n(votes_.begin(), counters_, std::uint16_t{0});  // the padding stays zero
 }
 
 void Voter::select(std::uint32_t k, std::vector<Correspondence>& out) {
   // A_k is the model points with a vote (eq. 9-10): its histogram is the accumulator's without
   // the zeros. Four histograms side by side, so that runs of equal votes do not wait on each other.
-  const std::uint16_t top = largestVote(votes_);
+  const std::span<const std::uint16_t> votes(votes_.data(), counters_);
+  const std::uint16_t top = largestVote(votes);
   if (top == 0) return;
   const std::size_t bins = std::size_t{top} + 1;
   histogram_.assign(4 * bins, 0);
-  const std::size_t n = votes_.size();
+  const std::size_t n = votes.size();
   std::size_t id = 0;
   for (; id + 4 <= n; id += 4)
     for (std::size_t lane = 0; lane < 4; ++lane) ++histogram_[lane * bins + votes_[id + lane]];
@@ -284,7 +355,7 @@ void Voter::select(std::uint32_t k, std::vector<Correspondence>& out) {
   const double limit = outlierLimit(std::span<const std::uint32_t>(histogram_.data(), bins));
   if (!(top > limit)) return;  // eq. 11: no upper outlier, no candidate
   const auto above = static_cast<std::uint16_t>(limit);  // votes are whole: v > limit <=> v > floor(limit)
-  votesAbove(votes_, above, outliers_);
+  votesAbove(votes, above, outliers_);
   const auto value = [this](std::size_t m) { return std::uint32_t{votes_[m]}; };
   // A body of revolution's accumulator is over its orbits: each one's first point stands for it.
   const auto model_point = [this](std::size_t m) {

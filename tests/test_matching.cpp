@@ -338,13 +338,13 @@ TEST(Voting, LongListsHeldAsBitsetsHoldTheSamePoints) {
       if ((bits[m / 64] >> (m % 64)) & 1) from_bits.push_back(m);
     ASSERT_EQ(from_bits, std::vector<std::uint32_t>(ids.begin(), ids.end())) << key;
   }
-  EXPECT_GT(dense, 10u);  // the flat faces' features: lists of an eighth of the points and more
+  EXPECT_GT(dense, 10u);  // the flat faces' features: lists of a 32nd of the points and more
 }
 
 TEST(Voting, BitsetCountingGivesTheSameCandidates) {
-  // The whole part as one group (500 partners: a key can come up more than 255 times, and the
-  // byte counters fill up and are flushed), with the fast preset's candidate rule, one vote per
-  // feature and rare keys weighing more (a bitset list then adds up to 4 at a time).
+  // The whole part as one group (500 partners: a point has up to about 1600 long lists, added
+  // 255 at a time into 8 bit planes), with the fast preset's candidate rule, one vote per
+  // feature and rare keys weighing more (a long list then adds up to 6 votes at a time).
   for (const bool weigh_rare : {false, true}) {
     SCOPED_TRACE(weigh_rare ? "rare keys weigh more" : "one vote per feature");
     const auto [points, normals, group] = wholePart(weigh_rare ? 22 : 21);

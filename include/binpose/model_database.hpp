@@ -53,14 +53,15 @@ class ModelDatabase {
     return {entries_.data() + offsets_[key], entries_.data() + offsets_[key + 1]};
   }
   /// The same model points as lookup(key), as a bitset of model().points.size() bits (64 to a
-  /// word), for a key listing at least denseListSize() points; empty for a shorter list.
+  /// word, zeros after the last point up to a multiple of 256 bits), for a key listing at least
+  /// denseListSize() points; empty for a shorter list.
   [[nodiscard]] std::span<const std::uint64_t> denseBits(std::uint32_t key) const {
     if (key >= dense_slot_.size() || dense_slot_[key] == kNoSlot) return {};
     return {dense_bits_.data() + std::size_t{dense_slot_[key]} * dense_words_, dense_words_};
   }
-  /// Lists of at least this many points are also kept as bitsets (an eighth of the points:
-  /// longer ones are counted faster by bitset than point by point).
-  [[nodiscard]] std::size_t denseListSize() const { return std::max<std::size_t>(1, model_.points.size() / 8); }
+  /// Lists of at least this many points are also kept as bitsets (a 32nd of the points: longer
+  /// ones are counted faster by bitset than point by point; see Voter).
+  [[nodiscard]] std::size_t denseListSize() const { return std::max<std::size_t>(1, model_.points.size() / 32); }
   [[nodiscard]] const KeySpace& keySpace() const { return keys_; }
   [[nodiscard]] const OrientedModel& model() const { return model_; }
   [[nodiscard]] std::uint64_t entryCount() const { return entries_.size(); }

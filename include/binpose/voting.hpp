@@ -79,11 +79,8 @@ class Voter {
  private:
   /// Adds `times` to the accumulator of each model point in `ids`.
   void countList(std::span<const ModelDatabase::PointId> ids, std::uint16_t times);
-  /// The same for a long list given as a bitset (ModelDatabase::denseBits), into byte-sized
-  /// counters (dense_), added into votes_ before they could overflow. AVX2 only.
-  void countDense(std::span<const std::uint64_t> bits, std::uint16_t times);
-  /// votes_ += dense_, dense_ cleared.
-  void flushDense();
+  /// Adds the long lists of dense_lists_ (bitsets, ModelDatabase::denseBits) into votes_. AVX2 only.
+  void countDense();
   /// Appends scene point k's candidates, the upper outliers of the accumulator (eq. 10-12).
   void select(std::uint32_t k, std::vector<Correspondence>& out);
 
@@ -95,13 +92,14 @@ class Voter {
   std::vector<std::uint32_t> keys_;       ///< the keys of one point's features
   struct List {
     std::span<const ModelDatabase::PointId> ids;
-    std::span<const std::uint64_t> bits;  ///< the same as a bitset, for a long list (else empty)
-    std::uint16_t times;  ///< features of the point with this key
+    std::uint16_t times;  ///< votes it adds: features of the point with this key (times their weight)
   };
-  std::vector<List> lists_;  ///< the model point lists of those keys
-  std::vector<std::uint16_t> votes_;      ///< A_k, one counter per model point (or orbit)
-  std::vector<std::uint8_t> dense_;       ///< the long lists' votes not yet in votes_, a byte per model point
-  std::uint32_t dense_sum_ = 0;           ///< the most any byte of dense_ can hold now
+  std::vector<List> lists_;  ///< the model point lists of those keys (but the bitsets)
+  /// A long list adding more votes than this is counted point by point, not by its bitset.
+  static constexpr std::uint16_t kMostBitsetRepeats = 16;
+  std::size_t counters_;                  ///< model points (or orbits)
+  std::vector<std::uint16_t> votes_;      ///< A_k, one counter per model point (or orbit), zeros after to a 256 multiple
+  std::vector<const std::uint64_t*> dense_lists_;  ///< one point's long lists' bitsets, each as often as it adds
   bool bitsets_;                          ///< long lists counted by bitset (where the CPU has AVX2)
   std::vector<std::uint32_t> histogram_;  ///< the accumulator's histogram (four side by side)
   std::vector<std::size_t> outliers_;     ///< model points whose votes are upper outliers
