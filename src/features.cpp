@@ -6,6 +6,9 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
 
 namespace binpose {
 
@@ -105,6 +108,107 @@ int KeySpace::overlapKeys(const PairFeature& f, std::array<std::uint32_t, kMaxKe
     }
   }
   return count;
+}
+
+namespace {
+
+void featureKeysScalar(const Vec3& p, const Vec3& n, const Points& points, const Points& normals,
+                       std::span<const std::uint32_t> others, std::uint32_t skip, const KeySpace& keys,
+                       std::vector<std::uint32_t>& out) {
+  for (const std::uint32_t o : others) {
+    PairFeature f;
+    if (o != skip && computeFeature(p, n, points[o], normals[o], f)) out.push_back(keys.key(f));
+  }
+}
+
+#if defined(__x86_64__)
+#define BINPOSE_AVX2_INLINE __attribute__((target("avx2"), always_inline)) inline
+
+/// fastAcos on 8 lanes, the same operations in the same order (no fused multiply-add).
+BINPOSE_AVX2_INLINE __m256 fastAcos8(__m256 c) {
+  const __m256 x = _mm256_min_ps(_mm256_andnot_ps(_mm256_set1_ps(-0.0f), c), _mm256_set1_ps(1.0f));
+  __m256 q = _mm256_set1_ps(-0.0012624911f);
+  q = _mm256_add_ps(_mm256_mul_ps(q, x), _mm256_set1_ps(0.0066700901f));
+  q = _mm256_sub_ps(_mm256_mul_ps(q, x), _mm256_set1_ps(0.0170881256f));
+  q = _mm256_add_ps(_mm256_mul_ps(q, x), _mm256_set1_ps(0.0308918810f));
+  q = _mm256_sub_ps(_mm256_mul_ps(q, x), _mm256_set1_ps(0.0501743046f));
+  q = _mm256_add_ps(_mm256_mul_ps(q, x), _mm256_set1_ps(0.0889789874f));
+  q = _mm256_sub_ps(_mm256_mul_ps(q, x), _mm256_set1_ps(0.2145988016f));
+  q = _mm256_add_ps(_mm256_mul_ps(q, x), _mm256_set1_ps(1.5707963050f));
+  const __m256 a = _mm256_mul_ps(_mm256_sqrt_ps(_mm256_sub_ps(_mm256_set1_ps(1.0f), x)), q);
+  const __m256 negative = _mm256_cmp_ps(c, _mm256_setzero_ps(), _CMP_LT_OQ);
+  return _mm256_blendv_ps(a, _mm256_sub_ps(_mm256_set1_ps(std::numbers::pi_v<float>), a), negative);
+}
+
+/// a . b of 3-vectors in lanes, summed as Eigen sums a Vector3f's: a0 b0 + (a1 b1 + a2 b2).
+BINPOSE_AVX2_INLINE __m256 dot8(__m256 ax, __m256 ay, __m256 az, __m256 bx, __m256 by, __m256 bz) {
+  return _mm256_add_ps(_mm256_mul_ps(ax, bx), _mm256_add_ps(_mm256_mul_ps(ay, by), _mm256_mul_ps(az, bz)));
+}
+
+/// KeySpace::key's angle bin on 8 lanes: min(trunc(a / d_angle), nA - 1).
+BINPOSE_AVX2_INLINE __m256i angleBin8(__m256 a, __m256 step, __m256i last) {
+  return _mm256_min_epi32(_mm256_cvttps_epi32(_mm256_div_ps(a, step)), last);
+}
+
+__attribute__((target("avx2"))) void featureKeysAvx2(const Vec3& p, const Vec3& n, const Points& points,
+                                                     const Points& normals, std::span<const std::uint32_t> others,
+                                                     std::uint32_t skip, const KeySpace& keys,
+                                                     std::vector<std::uint32_t>& out) {
+  const __m256 px = _mm256_set1_ps(p.x()), py = _mm256_set1_ps(p.y()), pz = _mm256_set1_ps(p.z());
+  const __m256 nx = _mm256_set1_ps(n.x()), ny = _mm256_set1_ps(n.y()), nz = _mm256_set1_ps(n.z());
+  const __m256 d_dist = _mm256_set1_ps(keys.params().d_dist), d_angle = _mm256_set1_ps(keys.params().d_angle);
+  const __m256 n_dist = _mm256_set1_ps(static_cast<float>(keys.distanceBins()));
+  const auto nA = keys.angleBins();
+  const __m256i last = _mm256_set1_epi32(nA - 1), vnA = _mm256_set1_epi32(nA);
+  alignas(32) float q[6][8];
+  alignas(32) std::uint32_t key[8];
+  std::size_t i = 0;
+  for (; i + 8 <= others.size(); i += 8) {
+    for (int l = 0; l < 8; ++l) {  // the 8 partners' points and normals, a lane each
+      const Vec3& m = points[others[i + l]];
+      const Vec3& mn = normals[others[i + l]];
+      q[0][l] = m.x(), q[1][l] = m.y(), q[2][l] = m.z(), q[3][l] = mn.x(), q[4][l] = mn.y(), q[5][l] = mn.z();
+    }
+    // eq. 3: d = m2 - m1, |d| as Eigen's norm (sqrt of x^2 + (y^2 + z^2)), u = d / |d|.
+    const __m256 dx = _mm256_sub_ps(_mm256_load_ps(q[0]), px), dy = _mm256_sub_ps(_mm256_load_ps(q[1]), py),
+                 dz = _mm256_sub_ps(_mm256_load_ps(q[2]), pz);
+    const __m256 d = _mm256_sqrt_ps(dot8(dx, dy, dz, dx, dy, dz));
+    const __m256 ux = _mm256_div_ps(dx, d), uy = _mm256_div_ps(dy, d), uz = _mm256_div_ps(dz, d);
+    const __m256 mx = _mm256_load_ps(q[3]), my = _mm256_load_ps(q[4]), mz = _mm256_load_ps(q[5]);
+    // eq. 2 and 4-5: the three angles' bins and the distance's.
+    const __m256i b1 = angleBin8(fastAcos8(dot8(nx, ny, nz, ux, uy, uz)), d_angle, last);
+    const __m256i b2 = angleBin8(fastAcos8(dot8(mx, my, mz, ux, uy, uz)), d_angle, last);
+    const __m256i b3 = angleBin8(fastAcos8(dot8(nx, ny, nz, mx, my, mz)), d_angle, last);
+    const __m256 mu_d = _mm256_floor_ps(_mm256_div_ps(d, d_dist));
+    __m256i k = _mm256_add_epi32(_mm256_mullo_epi32(_mm256_cvttps_epi32(mu_d), vnA), b1);
+    k = _mm256_add_epi32(_mm256_mullo_epi32(k, vnA), b2);
+    k = _mm256_add_epi32(_mm256_mullo_epi32(k, vnA), b3);
+    const __m256i beyond = _mm256_castps_si256(_mm256_cmp_ps(mu_d, n_dist, _CMP_GE_OQ));
+    _mm256_store_si256(reinterpret_cast<__m256i*>(key), _mm256_or_si256(k, beyond));  // kInvalid is all ones
+    const auto defined = static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(d, _mm256_setzero_ps(), _CMP_GT_OQ)));
+    for (int l = 0; l < 8; ++l)
+      if (((defined >> l) & 1) != 0 && others[i + l] != skip) out.push_back(key[l]);
+  }
+  featureKeysScalar(p, n, points, normals, others.subspan(i), skip, keys, out);
+}
+bool haveAvx2() { return __builtin_cpu_supports("avx2"); }
+#else
+void featureKeysAvx2(const Vec3& p, const Vec3& n, const Points& points, const Points& normals,
+                     std::span<const std::uint32_t> others, std::uint32_t skip, const KeySpace& keys,
+                     std::vector<std::uint32_t>& out) {
+  featureKeysScalar(p, n, points, normals, others, skip, keys, out);
+}
+bool haveAvx2() { return false; }
+#endif
+
+}  // namespace
+
+void featureKeys(const Vec3& p, const Vec3& n, const Points& points, const Points& normals,
+                 std::span<const std::uint32_t> others, std::uint32_t skip, const KeySpace& keys,
+                 std::vector<std::uint32_t>& out) {
+  static const bool avx2 = haveAvx2();
+  if (avx2) featureKeysAvx2(p, n, points, normals, others, skip, keys, out);
+  else featureKeysScalar(p, n, points, normals, others, skip, keys, out);
 }
 
 }  // namespace binpose

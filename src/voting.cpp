@@ -290,10 +290,7 @@ void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t
   // L_k (eq. 9): the model points under the key of every feature (ss_k -> ss_o). Features of the
   // same key (pairs on one plane, say) are counted together: the same sums, fewer increments.
   keys_.clear();
-  for (const std::uint32_t o : partners) {
-    PairFeature f;
-    if (o != k && computeFeature(points[k], normals[k], points[o], normals[o], f)) keys_.push_back(keys.key(f));
-  }
+  featureKeys(points[k], normals[k], points, normals, partners, k, keys, keys_);
   std::sort(keys_.begin(), keys_.end());
   lists_.clear();
   // With weights, no 16-bit count can overflow: each feature adds at most 65535 / features.

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <numeric>
 
 using namespace binpose;
 using binpose::test::deg;
@@ -159,4 +160,42 @@ TEST(Quantization, OutOfRangeAndBadParameters) {
   bad.d_dist = 1e-4f;  // absurdly fine: billions of keys
   EXPECT_THROW(KeySpace(bad, 60.0f), Error);
   EXPECT_THROW(KeySpace(thesisQuantization(), std::nanf("")), Error);
+}
+
+TEST(Quantization, SceneKeysInBatchesAreTheKeysOneByOne) {
+  // featureKeys (8 pairs to a SIMD step) against computeFeature and key one pair at a time: the
+  // same keys in the same order, the voter itself skipped, a partner at the voter's place left
+  // out, pairs beyond the key space kInvalid, and a count not a multiple of 8.
+  const KeySpace keys(thesisQuantization(), 60.0f);
+  Rng rng(5);
+  Points points, normals;
+  for (int i = 0; i < 203; ++i) {
+    const float reach = i % 10 == 0 ? 90.0f : 40.0f;  // some pairs beyond the 60 mm key space
+    points.emplace_back(float(reach * rng.uniform()), float(reach * rng.uniform()), float(reach * rng.uniform()));
+    normals.push_back(Vec3(float(rng.uniform() - 0.5), float(rng.uniform() - 0.5), float(rng.uniform() - 0.5)).normalized());
+  }
+  points[17] = points[3];  // coincides with voter 3
+  normals[40] = normals[3];  // theta3 = 0
+  normals[41] = -normals[3];  // theta3 = pi
+  std::vector<std::uint32_t> others(points.size());
+  std::iota(others.begin(), others.end(), 0u);
+  std::reverse(others.begin(), others.end());
+  int invalid = 0;
+  for (const std::uint32_t k : {3u, 40u, 150u}) {
+    for (const std::size_t count : {others.size(), std::size_t{13}, std::size_t{5}}) {
+      const auto some = std::span<const std::uint32_t>(others).first(count);
+      std::vector<std::uint32_t> expected, got;
+      for (const std::uint32_t o : some) {
+        PairFeature f;
+        if (o != k && computeFeature(points[k], normals[k], points[o], normals[o], f)) expected.push_back(keys.key(f));
+      }
+      featureKeys(points[k], normals[k], points, normals, some, k, keys, got);
+      EXPECT_EQ(got, expected) << k << " " << count;
+      invalid += static_cast<int>(std::count(got.begin(), got.end(), KeySpace::kInvalid));
+    }
+  }
+  std::vector<std::uint32_t> all;
+  featureKeys(points[3], normals[3], points, normals, others, 3, keys, all);
+  EXPECT_EQ(all.size(), points.size() - 2);  // neither point 3 itself nor point 17 at its place
+  EXPECT_GT(invalid, 0);
 }

@@ -4,6 +4,8 @@
 
 #include <array>
 #include <cstdint>
+#include <span>
+#include <vector>
 
 namespace binpose {
 
@@ -56,5 +58,13 @@ class KeySpace {
   int n_dist_ = 0, n_angle_ = 0;
   std::uint32_t size_ = 0;
 };
+
+/// The scene side of eq. 1-5 for many pairs: for each index o of `others` but `skip`, in order,
+/// the key (KeySpace::key) of the feature from (p, n) to (points[o], normals[o]), appended to
+/// `out` (kInvalid beyond the key space; nothing when the points coincide). The same keys as
+/// computeFeature and KeySpace::key one by one, 8 pairs to a step where the CPU has AVX2.
+void featureKeys(const Vec3& p, const Vec3& n, const Points& points, const Points& normals,
+                 std::span<const std::uint32_t> others, std::uint32_t skip, const KeySpace& keys,
+                 std::vector<std::uint32_t>& out);
 
 }  // namespace binpose
