@@ -8,6 +8,7 @@
 #include <tbb/global_control.h>
 
 #include <algorithm>
+#include <numeric>
 #include <set>
 
 using namespace binpose;
@@ -125,4 +126,18 @@ TEST(Database, RefusesBadModels) {
   model = smallModel(100);
   model.normals.pop_back();
   EXPECT_THROW(ModelDatabase::build(model, defaultQuantization(30.0f)), Error);
+}
+
+TEST(Database, LargeTablesLieOn2MiBBoundaries) {
+  // The table's large arrays are allocated for huge pages (madvise needs a 2 MiB aligned range);
+  // small ones as usual. Either way they hold what is written.
+  HugeVector<std::uint32_t> large(std::size_t{3} << 20 >> 2), small(1000);
+  EXPECT_EQ(reinterpret_cast<std::uintptr_t>(large.data()) % (std::uintptr_t{2} << 20), 0u);
+  for (std::size_t i = 0; i < large.size(); i += 4097) large[i] = static_cast<std::uint32_t>(i);
+  std::iota(small.begin(), small.end(), 7u);
+  for (std::size_t i = 0; i < large.size(); i += 4097) ASSERT_EQ(large[i], i);
+  EXPECT_EQ(small.back(), 1006u);
+  large.resize(large.size() * 2);  // moved to a new 2 MiB aligned block
+  EXPECT_EQ(reinterpret_cast<std::uintptr_t>(large.data()) % (std::uintptr_t{2} << 20), 0u);
+  EXPECT_EQ(large[4097], 4097u);
 }

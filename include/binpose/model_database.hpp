@@ -4,6 +4,7 @@
 // each model point at most once per key. Immutable once built; a compressed-row layout (one
 // offset per key of the dense key space, then the model point ids), so a lookup is two loads.
 #include <binpose/features.hpp>
+#include <binpose/memory.hpp>
 #include <binpose/model.hpp>
 
 #include <algorithm>
@@ -70,13 +71,13 @@ class ModelDatabase {
  private:
   OrientedModel model_;
   KeySpace keys_;
-  std::vector<std::uint32_t> offsets_;  ///< keys_.size() + 1 offsets into entries_
-  std::vector<PointId> entries_;
+  HugeVector<std::uint32_t> offsets_;  ///< keys_.size() + 1 offsets into entries_
+  HugeVector<PointId> entries_;
   /// Bitsets of the long lists (derived from the lists when built or loaded; not in the file).
   void indexDenseLists();
   static constexpr std::uint32_t kNoSlot = UINT32_MAX;
-  std::vector<std::uint32_t> dense_slot_;  ///< per key: its bitset's place, or kNoSlot
-  std::vector<std::uint64_t> dense_bits_;
+  HugeVector<std::uint32_t> dense_slot_;  ///< per key: its bitset's place, or kNoSlot
+  HugeVector<std::uint64_t> dense_bits_;
   std::size_t dense_words_ = 0;
 };
 
