@@ -376,9 +376,10 @@ TEST(Voting, VoterSelectsTheUpperOutliersOfItsCounts) {
         for (const auto m : db.lookup(db.keySpace().key(f))) ++counts[m];
       }
       std::vector<std::size_t> expected = selectCandidates(counts, keep);
-      if (keep > 1)  // selectCandidates gives them best first; with keep 1, the ties in index order
+      if (keep > 1) {  // selectCandidates gives them best first; with keep 1, the ties in index order
         ASSERT_TRUE(std::is_sorted(expected.begin(), expected.end(),
                                    [&](std::size_t a, std::size_t b) { return counts[a] > counts[b]; }));
+      }
       std::vector<Correspondence> got;
       voter.votePoint(points, normals, k, group, got);
       ASSERT_EQ(got.size(), expected.size()) << k;
