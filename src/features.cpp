@@ -1,14 +1,13 @@
 // Oriented point-pair features (thesis 4.2).
 #include <binpose/features.hpp>
 
+#include "simd.hpp"
+
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <cmath>
 #include <numbers>
-#if defined(__x86_64__)
-#include <immintrin.h>
-#endif
 
 namespace binpose {
 
@@ -122,8 +121,6 @@ void featureKeysScalar(const Vec3& p, const Vec3& n, const Points& points, const
 }
 
 #if defined(__x86_64__)
-#define BINPOSE_AVX2_INLINE __attribute__((target("avx2"), always_inline)) inline
-
 /// fastAcos on 8 lanes, the same operations in the same order (no fused multiply-add).
 BINPOSE_AVX2_INLINE __m256 fastAcos8(__m256 c) {
   const __m256 x = _mm256_min_ps(_mm256_andnot_ps(_mm256_set1_ps(-0.0f), c), _mm256_set1_ps(1.0f));
@@ -191,14 +188,12 @@ __attribute__((target("avx2"))) void featureKeysAvx2(const Vec3& p, const Vec3& 
   }
   featureKeysScalar(p, n, points, normals, others.subspan(i), skip, keys, out);
 }
-bool haveAvx2() { return __builtin_cpu_supports("avx2"); }
 #else
 void featureKeysAvx2(const Vec3& p, const Vec3& n, const Points& points, const Points& normals,
                      std::span<const std::uint32_t> others, std::uint32_t skip, const KeySpace& keys,
                      std::vector<std::uint32_t>& out) {
   featureKeysScalar(p, n, points, normals, others, skip, keys, out);
 }
-bool haveAvx2() { return false; }
 #endif
 
 }  // namespace
@@ -206,8 +201,7 @@ bool haveAvx2() { return false; }
 void featureKeys(const Vec3& p, const Vec3& n, const Points& points, const Points& normals,
                  std::span<const std::uint32_t> others, std::uint32_t skip, const KeySpace& keys,
                  std::vector<std::uint32_t>& out) {
-  static const bool avx2 = haveAvx2();
-  if (avx2) featureKeysAvx2(p, n, points, normals, others, skip, keys, out);
+  if (detail::haveAvx2()) featureKeysAvx2(p, n, points, normals, others, skip, keys, out);
   else featureKeysScalar(p, n, points, normals, others, skip, keys, out);
 }
 

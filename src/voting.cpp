@@ -3,12 +3,11 @@
 
 #include <binpose/symmetry.hpp>
 
+#include "simd.hpp"
+
 #include <algorithm>
 #include <array>
 #include <bit>
-#if defined(__x86_64__)
-#include <immintrin.h>
-#endif
 #include <cstring>
 #include <numeric>
 #include <fmt/format.h>
@@ -127,8 +126,6 @@ void Voter::countList(std::span<const ModelDatabase::PointId> ids, std::uint16_t
 namespace {
 
 #if defined(__x86_64__)
-#define BINPOSE_AVX2_INLINE __attribute__((target("avx2"), always_inline)) inline
-
 BINPOSE_AVX2_INLINE __m256i load256(const std::uint64_t* at) { return _mm256_loadu_si256(reinterpret_cast<const __m256i*>(at)); }
 
 /// Carry-save adder, bit by bit: a + b + c = sum + 2 carry.
@@ -215,10 +212,8 @@ void addBitsets(std::uint16_t* votes, std::span<const std::uint64_t* const> bits
     }
   }
 }
-bool haveAvx2() { return __builtin_cpu_supports("avx2"); }
 #else
 void addBitsets(std::uint16_t*, std::span<const std::uint64_t* const>, std::size_t) {}
-bool haveAvx2() { return false; }
 #endif
 
 // The accumulator's scans, 8 counters to an SSE4.1 step where the build has it (x86-64-v2 and
@@ -277,12 +272,12 @@ void Voter::countDense() {
 Voter::Voter(const ModelDatabase& db, int keep, std::uint32_t max_list, float spacing, bool weigh_rare, const Orbits* orbits)
     : db_(db), keep_(keep), weigh_rare_(weigh_rare), max_list_(max_list), spacing_(spacing),
       counters_(orbits != nullptr ? orbits->count : db.model().points.size()),
-      votes_(256 * ((counters_ + 255) / 256), 0), bitsets_(orbits == nullptr && haveAvx2()), orbits_(orbits) {
+      votes_(256 * ((counters_ + 255) / 256), 0), bitsets_(orbits == nullptr && detail::haveAvx2()), orbits_(orbits) {
   if (orbits_ != nullptr && orbits_->of.size() != db.model().points.size())
     throw Error(fmt::format("orbits of {} points for a model of {}", orbits_->of.size(), db.model().points.size()));
 }
 
-void Voter::useBitsets(bool on) { bitsets_ = on && orbits_ == nullptr && haveAvx2(); }
+void Voter::useBitsets(bool on) { bitsets_ = on && orbits_ == nullptr && detail::haveAvx2(); }
 
 void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t k,
                       std::span<const std::uint32_t> partners, std::vector<Correspondence>& out) {
