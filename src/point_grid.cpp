@@ -183,23 +183,45 @@ std::size_t PointGrid::knn(const Vec3& q, std::size_t k, std::uint32_t* indices,
   }
 }
 
+bool PointGrid::searchBox(const Vec3& q, float radius, float limit, std::uint32_t& index, float& sq_dist) const {
+  Best best{1, 0, &index, &sq_dist};
+  forEachInBox(boxAround(q, radius), [&](std::uint32_t s) {
+    const float d2 = (points_[s] - q).squaredNorm();
+    if (d2 <= limit) best.offer(d2, ids_[s]);
+  });
+  return best.count == 1;
+}
+
 bool PointGrid::nearest(const Vec3& q, float max_distance, std::uint32_t& index, float& sq_dist) const {
   if (ids_.empty() || !q.allFinite() || !(max_distance >= 0)) return false;
-  auto search = [&](float radius) {  // the nearest within radius: knn's k = 1, beyond it left out
-    Best best{1, 0, &index, &sq_dist};
-    const float limit = radius * radius;
-    forEachInBox(boxAround(q, radius), [&](std::uint32_t s) {
-      const float d2 = (points_[s] - q).squaredNorm();
-      if (d2 <= limit) best.offer(d2, ids_[s]);
-    });
-    return best.count == 1;
-  };
   // Most queries (ICP's, the score's) have a neighbour within half a cell: the 1-2 cells per axis
   // around q settle them (a box of a whole cell's radius is 3 cells per axis, 27 in all). The
   // nearest found within a radius is the nearest of all, so each step gives the same answer.
   for (const float radius : {0.5f * cell_, cell_})
-    if (max_distance > radius && search(radius)) return true;
-  return search(max_distance);
+    if (max_distance > radius && searchBox(q, radius, radius * radius, index, sq_dist)) return true;
+  return searchBox(q, max_distance, max_distance * max_distance, index, sq_dist);
+}
+
+bool PointGrid::nearestWithin(const Vec3& q, float sq_limit, std::uint32_t& index, float& sq_dist) const {
+  if (ids_.empty() || !q.allFinite() || !(sq_limit >= 0)) return false;
+  // The box a little wider than the limit's root, so rounding leaves out no point at the limit.
+  return searchBox(q, std::sqrt(sq_limit) * (1.0f + 1e-5f) + 1e-6f * cell_, sq_limit, index, sq_dist);
+}
+
+bool PointGrid::anyWithin(const Vec3& q, float max_distance) const {
+  if (ids_.empty() || !q.allFinite() || !(max_distance >= 0)) return false;
+  const float limit = max_distance * max_distance;
+  const auto hit = [&](const Box& b) {
+    for (int z = b.z0; z <= b.z1; ++z)
+      for (int y = b.y0; y <= b.y1; ++y) {
+        const std::size_t row = (std::size_t(z) * ny_ + y) * nx_;
+        for (std::uint32_t s = offsets_[row + b.x0]; s < offsets_[row + b.x1 + 1]; ++s)
+          if ((points_[s] - q).squaredNorm() <= limit) return true;
+      }
+    return false;
+  };
+  // As nearest(): the cells around q first, where a point on a surface the scan sees finds one.
+  return (max_distance > 0.5f * cell_ && hit(boxAround(q, 0.5f * cell_))) || hit(boxAround(q, max_distance));
 }
 
 void PointGrid::within(const Vec3& q, float radius, std::vector<std::uint32_t>& out) const {

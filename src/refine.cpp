@@ -60,6 +60,8 @@ class ZBuffer {
   std::vector<float> nearest_;
 };
 
+constexpr std::uint32_t kUnpaired = ~std::uint32_t{0};
+
 /// ICP stops once a step moves no model point more than this, mm.
 constexpr double kConverged = 1e-3;
 
@@ -121,6 +123,10 @@ Pose refinePose(const Pose& pose, const Points& model_points, const Points& mode
   float gate = params.max_distance;
   std::vector<NormalEquations> parts((model_points.size() + kChunk - 1) / kChunk);
   std::size_t stride = model_points.size() >= 64 * kCoarseStride ? kCoarseStride : 1;
+  // Each model point's scan pair of the step before: the pairs move little from step to step, so
+  // the nearest lies no farther than the old pair, and a search of that small box finds it (the
+  // same pair as a search out to the gate).
+  std::vector<std::uint32_t> paired(model_points.size(), kUnpaired);
   double last_moved = INFINITY;  // the last step's, in the current stage
   for (int it = 0; it < params.iterations; ++it) {
     // Linearised about the posed model's centre: a part's free motions (the spin of a body of
@@ -136,9 +142,14 @@ Pose refinePose(const Pose& pose, const Points& model_points, const Points& mode
         const Vec3 p = current * model_points[i];
         const Vec3 n = current.linear() * model_normals[i];
         if (!facesSensor(p, n, params.viewpoint)) continue;
-        std::uint32_t j;
+        std::uint32_t& j = paired[i];
         float d2;
-        if (!scan_grid.nearest(p, gate, j, d2)) continue;
+        const float old_d2 = j != kUnpaired ? (scan[j] - p).squaredNorm() : INFINITY;
+        const bool found = old_d2 <= gate * gate ? scan_grid.nearestWithin(p, old_d2, j, d2) : scan_grid.nearest(p, gate, j, d2);
+        if (!found) {
+          j = kUnpaired;
+          continue;
+        }
         // residual n.(q - p) against the step (omega, t): n.(omega x (p - c) + t)
         Eigen::Matrix<double, 6, 1> J;
         J << (p - c).cross(n).cast<double>(), n.cast<double>();
@@ -281,7 +292,8 @@ Evidence SceneEvidence::evaluate(const Pose& pose, const Points& model_points, c
         continue;
       }
       float d2;
-      if (grid_.nearest(f.p, tolerance, nearest[i], d2)) {
+      // The nearest scan point itself only for the support list; the score asks only whether there is one.
+      if (support != nullptr ? grid_.nearest(f.p, tolerance, nearest[i], d2) : grid_.anyWithin(f.p, tolerance)) {
         const bool on_bin = std::any_of(background_.begin(), background_.end(),
                                         [&](const Plane& b) { return b.distance(f.p) <= background_tolerance_; });
         if (!on_bin) verdict[i] = kSupported;

@@ -74,6 +74,7 @@ TEST(PointGrid, NearestWithinEqualsBruteForce) {
     std::uint32_t j = 0;
     float d2 = 0;
     ASSERT_EQ(grid.nearest(q, gate, j, d2), within) << "query " << t;
+    EXPECT_EQ(grid.anyWithin(q, gate), within) << "query " << t;
     if (!within) {
       ++missed;
       continue;
@@ -84,6 +85,47 @@ TEST(PointGrid, NearestWithinEqualsBruteForce) {
   }
   EXPECT_GT(found, 500);  // both outcomes were exercised
   EXPECT_GT(missed, 100);
+}
+
+TEST(PointGrid, APointExactlyAtTheGateIsWithin) {
+  // Half-way between two pixels of the sheet: the nearest is exactly 0.5 mm away.
+  const Points points = scanLike();
+  const PointGrid grid(points);
+  for (int i = 0; i < 4800; i += 97) {
+    const Vec3 q = points[static_cast<std::size_t>(i)] + Vec3(0.5f, 0.0f, 0.0f);
+    ASSERT_EQ(bruteKnn(points, q, 1)[0].first, 0.25f);
+    EXPECT_TRUE(grid.anyWithin(q, 0.5f)) << "point " << i;
+    EXPECT_FALSE(grid.anyWithin(q, 0.49f)) << "point " << i;
+    std::uint32_t j;
+    float d2;
+    EXPECT_TRUE(grid.nearest(q, 0.5f, j, d2)) << "point " << i;
+  }
+}
+
+TEST(PointGrid, NearestWithinAKnownPointsDistanceIsTheNearest) {
+  // ICP's query: the distance to one point is known (its pair of the step before), and the
+  // nearest lies no farther. Queries on the points (distance 0, ties on the pixel grid), near
+  // them and above the sheet; the known point is one of the 12 nearest.
+  const Points points = scanLike();
+  for (const float cell : {0.0f, 0.7f, 3.0f}) {
+    const PointGrid grid(points, cell);
+    Rng rng(17);
+    int farther = 0;
+    for (int t = 0; t < 1000; ++t) {
+      Vec3 q = points[rng.below(points.size())];
+      if (t % 3 == 1) q += Vec3(float(rng.uniform()), float(rng.uniform()), float(rng.uniform()));
+      if (t % 3 == 2) q += Vec3(0, 0, -5.0f * float(rng.uniform()));
+      const auto truth = bruteKnn(points, q, 12);
+      const auto& known = truth[rng.below(truth.size())];
+      farther += known.first > truth[0].first;
+      std::uint32_t j = 0;
+      float d2 = 0;
+      ASSERT_TRUE(grid.nearestWithin(q, known.first, j, d2)) << "cell " << cell << " query " << t;
+      EXPECT_EQ(j, truth[0].second) << "cell " << cell << " query " << t;
+      EXPECT_EQ(d2, truth[0].first);
+    }
+    EXPECT_GT(farther, 500);  // mostly a known point other than the nearest
+  }
 }
 
 TEST(PointGrid, WithinRadiusEqualsBruteForce) {

@@ -33,6 +33,14 @@ class PointGrid {
   /// The nearest point of q within `max_distance` (equal distances: the lower index); false when
   /// there is none.
   bool nearest(const Vec3& q, float max_distance, std::uint32_t& index, float& sq_dist) const;
+  /// The nearest point of q at a squared distance of at most `sq_limit`, as nearest() with
+  /// max_distance^2 = sq_limit: for a caller that knows a point that close (ICP, whose pairs move
+  /// little from one step to the next), a search of that small box alone.
+  bool nearestWithin(const Vec3& q, float sq_limit, std::uint32_t& index, float& sq_dist) const;
+
+  /// Whether some point lies within `max_distance` of q (squared distance <= max_distance^2):
+  /// nearest()'s answer is found, but the search stops at the first such point.
+  [[nodiscard]] bool anyWithin(const Vec3& q, float max_distance) const;
 
   /// Every point closer than `radius` to q (squared distance < radius^2, as nanoflann's radius
   /// search): indices into the points, in no particular order, into `out` (cleared).
@@ -45,6 +53,9 @@ class PointGrid {
   [[nodiscard]] Box boxAround(const Vec3& q, float radius) const;
   /// How far from q every point lies inside the cells of `b` (the distance to the box's nearest
   /// face not on the grid's border; infinite when every face is on it).
+  /// The nearest point with squared distance <= limit in the cells of the box of `radius`
+  /// around q (radius >= sqrt(limit): all of them).
+  bool searchBox(const Vec3& q, float radius, float limit, std::uint32_t& index, float& sq_dist) const;
   [[nodiscard]] float coveredDistance(const Vec3& q, const Box& b) const;
   /// visit(slot) for each point of the cells of `b` (slots index ids_ and points_).
   template <class Visit>
