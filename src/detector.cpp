@@ -214,7 +214,7 @@ struct Matcher {
 }  // namespace
 
 Detector::Detector(const ModelDatabase& db, const DetectionParams& params)
-    : db_(db), params_(params), model_tree_(db.model().points),
+    : db_(db), params_(params), model_grid_(db.model().points, std::max(params.sigma_dist, 0.1f * db.model().diameter)),
       icp_model_(evenShare(db.model().points, db.model().normals, static_cast<std::size_t>(std::max(0, params.icp_model_points)))) {
   validate(params_);
   if (params_.plane_min_area == 0) params_.plane_min_area = boundingFaceArea(db.model().points);
@@ -233,9 +233,7 @@ bool Detector::nearModel(const Vec3& x, float distance) const {
   // Most points of a neighbouring part's pose, or of the scene around a found part, lie far
   // outside the model's box: no tree query for them.
   if ((x.array() < model_lo_.array() - distance).any() || (x.array() > model_hi_.array() + distance).any()) return false;
-  std::uint32_t j;
-  float d2;
-  return model_tree_.nearest(x, j, d2) && d2 <= distance * distance;
+  return model_grid_.anyWithin(x, distance);
 }
 
 bool Detector::samePose(const Pose& a, const Pose& b, float share) const {
@@ -367,10 +365,12 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
       const Pose inverse = det.pose.inverse();
       const Vec3 centre = det.pose * model_centroid_;
       const float reach = model_radius_ + p.sigma_dist;
-      for (std::size_t i = 0; i < scene.points.size(); ++i) {
-        if (removed[i] || (scene.points[i] - centre).squaredNorm() > reach * reach) continue;
-        if (nearModel(inverse * scene.points[i], p.sigma_dist)) removed[i] = 1;
-      }
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, scene.points.size(), 1024), [&](const auto& range) {
+        for (std::size_t i = range.begin(); i < range.end(); ++i) {  // each point on its own: any thread count
+          if (removed[i] || (scene.points[i] - centre).squaredNorm() > reach * reach) continue;
+          if (nearModel(inverse * scene.points[i], p.sigma_dist)) removed[i] = 1;
+        }
+      });
     }
     hypotheses.push_back(std::move(o.hypothesis));
     if (!remove) return;  // not sure enough to take its points away

@@ -1,7 +1,7 @@
 #pragma once
 // Online recognition (thesis chapters 4-5): scan -> preprocess -> sub-groups -> votes ->
 // correspondences -> clique -> pose -> detections, removing each found object's points.
-#include <binpose/kdtree.hpp>
+#include <binpose/point_grid.hpp>
 #include <binpose/model_database.hpp>
 #include <binpose/params.hpp>
 #include <binpose/pose.hpp>
@@ -68,7 +68,7 @@ class Detector {
   /// that 0.1 diameter (tried_share's closer match).
   [[nodiscard]] bool samePose(const Pose& a, const Pose& b, float share = 1.0f) const;
   /// True when x (in the model's frame) lies within `distance` of a model point. A point that
-  /// far outside the model's bounding box is answered without a tree query.
+  /// far outside the model's bounding box is answered without a grid query.
   [[nodiscard]] bool nearModel(const Vec3& x, float distance) const;
   /// Best first, keeps a detection unless it is another pose of an object already kept: over a
   /// quarter of its supporting scan points are claimed (each scan point belongs to one object),
@@ -77,7 +77,7 @@ class Detector {
 
   const ModelDatabase& db_;
   DetectionParams params_;
-  KdTree model_tree_;
+  PointGrid model_grid_;  ///< the model points, cells of sigma_dist: nearModel's queries
   OrientedPoints icp_model_;  ///< the model points ICP pairs up (icp_model_points of them)
   Vec3 model_centroid_;
   float model_radius_ = 0;  ///< largest distance of a model point from the centroid
