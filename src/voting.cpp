@@ -409,7 +409,7 @@ void ParallelVoter::vote(const Points& points, const Points& normals, std::span<
 
 struct NeighbourhoodVoter::Local {
   Voter voter;
-  std::vector<std::pair<std::uint32_t, float>> found;
+  std::vector<std::uint32_t> found;
   std::vector<std::uint32_t> partners;
   std::vector<Correspondence> out;
 };
@@ -425,7 +425,7 @@ NeighbourhoodVoter::NeighbourhoodVoter(const ModelDatabase& db, const Points& po
     partners_.assign(partners.begin(), partners.end());
   }
   for (const auto o : partners_) partner_points_.push_back(points[o]);
-  tree_ = std::make_unique<KdTree>(partner_points_);
+  grid_ = std::make_unique<PointGrid>(partner_points_, 0.5f * radius);
   // Each thread's copy of this one (its own accumulator and buffers).
   locals_ = std::make_unique<tbb::enumerable_thread_specific<Local>>(Local{Voter(db, keep, max_list, spacing, weigh_rare, orbits), {}, {}, {}});
 }
@@ -443,11 +443,11 @@ void NeighbourhoodVoter::vote(std::span<const std::uint32_t> voters) {
     Local& l = locals_->local();
     for (std::size_t v = range.begin(); v < range.end(); ++v) {
       const std::uint32_t k = pending_[v];
-      tree_->radius(points_[k], radius_, l.found);
+      grid_->within(points_[k], radius_, l.found);
       if (l.found.size() >= 65535)
         throw Error(fmt::format("{} points within {} mm of a point: too many to vote", l.found.size(), radius_));
       l.partners.clear();
-      for (const auto& [o, d2] : l.found) l.partners.push_back(partners_[o]);
+      for (const auto o : l.found) l.partners.push_back(partners_[o]);
       l.out.clear();
       l.voter.votePoint(points_, normals_, k, l.partners, l.out);
       for (const Correspondence& c : l.out) candidates_[k].push_back(c.model);

@@ -1,6 +1,6 @@
 #pragma once
 // Voting for scene points' model points (thesis 4.3-4.4).
-#include <binpose/kdtree.hpp>
+#include <binpose/point_grid.hpp>
 #include <binpose/model_database.hpp>
 
 #include <cstdint>
@@ -149,7 +149,7 @@ class NeighbourhoodVoter {
   float radius_;
   std::vector<std::uint32_t> partners_;  ///< partner index -> point index
   Points partner_points_;
-  std::unique_ptr<KdTree> tree_;
+  std::unique_ptr<PointGrid> grid_;  ///< the partners, for the radius searches
   std::vector<char> voted_;
   std::vector<std::vector<std::uint32_t>> candidates_;
   std::unique_ptr<tbb::enumerable_thread_specific<Local>> locals_;
