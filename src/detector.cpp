@@ -231,7 +231,7 @@ Detector::Detector(const ModelDatabase& db, const DetectionParams& params)
 
 bool Detector::nearModel(const Vec3& x, float distance) const {
   // Most points of a neighbouring part's pose, or of the scene around a found part, lie far
-  // outside the model's box: no tree query for them.
+  // outside the model's box: no grid query for them.
   if ((x.array() < model_lo_.array() - distance).any() || (x.array() > model_hi_.array() + distance).any()) return false;
   return model_grid_.anyWithin(x, distance);
 }

@@ -51,11 +51,11 @@ class PointGrid {
  private:
   struct Box { int x0, x1, y0, y1, z0, z1; };
   [[nodiscard]] Box boxAround(const Vec3& q, float radius) const;
-  /// How far from q every point lies inside the cells of `b` (the distance to the box's nearest
-  /// face not on the grid's border; infinite when every face is on it).
   /// The nearest point with squared distance <= limit in the cells of the box of `radius`
   /// around q (radius >= sqrt(limit): all of them).
   bool searchBox(const Vec3& q, float radius, float limit, std::uint32_t& index, float& sq_dist) const;
+  /// How far from q every point lies inside the cells of `b` (the distance to the box's nearest
+  /// face not on the grid's border; infinite when every face is on it).
   [[nodiscard]] float coveredDistance(const Vec3& q, const Box& b) const;
   /// visit(slot) for each point of the cells of `b` (slots index ids_ and points_).
   template <class Visit>
