@@ -160,13 +160,23 @@ float PointGrid::coveredDistance(const Vec3& q, const Box& b) const {
   return std::max(0.0f, std::min({side(0, b.x0, b.x1, nx_), side(1, b.y0, b.y1, ny_), side(2, b.z0, b.z1, nz_)}));
 }
 
-template <class Visit>
-void PointGrid::forEachInBox(const Box& b, Visit&& visit) const {
+template <class Test>
+bool PointGrid::anyInBox(const Box& b, Test&& test) const {
   for (int z = b.z0; z <= b.z1; ++z)
     for (int y = b.y0; y <= b.y1; ++y) {
       const std::size_t row = (std::size_t(z) * ny_ + y) * nx_;  // a row's cells are side by side in points_
-      for (std::uint32_t s = offsets_[row + b.x0]; s < offsets_[row + b.x1 + 1]; ++s) visit(s);
+      for (std::uint32_t s = offsets_[row + b.x0]; s < offsets_[row + b.x1 + 1]; ++s)
+        if (test(s)) return true;
     }
+  return false;
+}
+
+template <class Visit>
+void PointGrid::forEachInBox(const Box& b, Visit&& visit) const {
+  anyInBox(b, [&](std::uint32_t s) {
+    visit(s);
+    return false;
+  });
 }
 
 std::size_t PointGrid::knn(const Vec3& q, std::size_t k, std::uint32_t* indices, float* sq_dists) const {
@@ -212,13 +222,7 @@ bool PointGrid::anyWithin(const Vec3& q, float max_distance) const {
   if (ids_.empty() || !q.allFinite() || !(max_distance >= 0)) return false;
   const float limit = max_distance * max_distance;
   const auto hit = [&](const Box& b) {
-    for (int z = b.z0; z <= b.z1; ++z)
-      for (int y = b.y0; y <= b.y1; ++y) {
-        const std::size_t row = (std::size_t(z) * ny_ + y) * nx_;
-        for (std::uint32_t s = offsets_[row + b.x0]; s < offsets_[row + b.x1 + 1]; ++s)
-          if ((points_[s] - q).squaredNorm() <= limit) return true;
-      }
-    return false;
+    return anyInBox(b, [&](std::uint32_t s) { return (points_[s] - q).squaredNorm() <= limit; });
   };
   // As nearest(): the cells around q first, where a point on a surface the scan sees finds one.
   return (max_distance > 0.5f * cell_ && hit(boxAround(q, 0.5f * cell_))) || hit(boxAround(q, max_distance));

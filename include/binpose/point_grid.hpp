@@ -57,7 +57,11 @@ class PointGrid {
   /// How far from q every point lies inside the cells of `b` (the distance to the box's nearest
   /// face not on the grid's border; infinite when every face is on it).
   [[nodiscard]] float coveredDistance(const Vec3& q, const Box& b) const;
-  /// visit(slot) for each point of the cells of `b` (slots index ids_ and points_).
+  /// test(slot) for each point of the cells of `b` (slots index ids_ and points_) until one
+  /// returns true; whether one did.
+  template <class Test>
+  bool anyInBox(const Box& b, Test&& test) const;
+  /// visit(slot) for each point of the cells of `b`.
   template <class Visit>
   void forEachInBox(const Box& b, Visit&& visit) const;
   void build(const Points& points, float cell);
