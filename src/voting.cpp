@@ -341,7 +341,7 @@ void Voter::select(std::uint32_t k, std::vector<Correspondence>& out) {
   std::uint32_t* const h1 = h0 + bins;
   std::uint32_t* const h2 = h1 + bins;
   std::uint32_t* const h3 = h2 + bins;
-  const std::uint16_t* const v = votes_.data();
+  const std::uint16_t* const v = votes.data();
   const std::size_t n = votes.size();
   std::size_t id = 0;
   for (; id + 4 <= n; id += 4) {
