@@ -72,7 +72,7 @@ class Detector {
   [[nodiscard]] bool nearModel(const Vec3& x, float distance) const;
   /// Best first, keeps a detection unless it is another pose of an object already kept: over a
   /// quarter of its supporting scan points are claimed (each scan point belongs to one object),
-  /// or its model mostly overlaps a kept one's (a near-symmetric flip, say).
+  /// or a twentieth are and its model mostly overlaps a kept one's (a near-symmetric flip, say).
   [[nodiscard]] std::vector<Detection> suppressDuplicates(std::vector<Hypothesis> hypotheses, std::size_t scan_size) const;
 
   const ModelDatabase& db_;
