@@ -195,18 +195,20 @@ struct Matcher {
           best = score;
           det.pose = other;
         }
-      if (p.prescreen && best < p.min_score && p.prescreen_retry_steps > 0 && best >= p.prescreen_retry_share * p.min_score) {
-        // Near the scan but a few mm off: a few coarse ICP steps, and another look.
-        const IcpParams nudge{p.prescreen_retry_steps, p.icp_max_distance, p.verify_tolerance, p.viewpoint};
-        const Pose moved = refinePose(det.pose, icp_model.points, icp_model.normals, scan.points, scan_grid, nudge);
-        if (const float score = prescore(moved); score >= p.min_score) {
-          best = score;
-          det.pose = moved;
-        }
-      }
       if (p.prescreen && best < p.min_score) {
-        s.outcome.screened_out = true;  // far from the scan even at the ICP gate: not worth refining
-        return;
+        if (p.prescreen_retry_steps > 0 && best >= p.prescreen_retry_share * p.min_score) {
+          // Near the scan but a few mm off: a few coarse ICP steps, and another look.
+          const IcpParams nudge{p.prescreen_retry_steps, p.icp_max_distance, p.verify_tolerance, p.viewpoint};
+          const Pose moved = refinePose(det.pose, icp_model.points, icp_model.normals, scan.points, scan_grid, nudge);
+          if (const float score = prescore(moved); score >= p.min_score) {
+            best = score;
+            det.pose = moved;
+          }
+        }
+        if (best < p.min_score) {
+          s.outcome.screened_out = true;  // far from the scan even at the ICP gate: not worth refining
+          return;
+        }
       }
     }
     if (p.refine) {

@@ -34,6 +34,13 @@ Vec3 centroidOf(const Points& pts) {
   return c / float(pts.size());
 }
 
+/// A pose from the top three rows of its 4 x 4 matrix, row-major (as ground_truth.json holds it).
+Pose poseFromRows(const float (&rows)[12]) {
+  Pose pose = Pose::Identity();
+  for (int i = 0; i < 12; ++i) pose.matrix()(i / 4, i % 4) = rows[i];
+  return pose;
+}
+
 const ModelDatabase& ipdDatabase() {
   static const ModelDatabase db = [] {
     const OrientedModel model = prepareModel(readMesh(test::dataPath("ipd_parts/models/obj_000000.ply")), ModelParams{});
@@ -193,18 +200,11 @@ TEST(Detector, CliquesNearATriedPoseAreNotVerifiedAgain) {
 // visible copy 20 was missed). Found: centroid within 0.1 diameter, axis within 5 degrees.
 TEST(Detector, CapsStackedRimToRimAreBothFound) {
   const ModelDatabase& db = capBin().db;
-  auto pose = [](std::initializer_list<float> rows) {
-    Pose p = Pose::Identity();
-    auto v = rows.begin();
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 4; ++c) p.matrix()(r, c) = *v++;
-    return p;
-  };
   const std::vector<Pose> truth{
-      pose({-0.0814722f, 0.9500718f, -0.3012074f, 13.52012f, -0.1851757f, 0.2825210f, 0.9412183f, 1.77226f,
-            0.9793223f, 0.1324593f, 0.1529126f, 447.18512f}),
-      pose({0.9496958f, -0.0359483f, 0.3111040f, -0.44647f, 0.2975879f, -0.2058975f, -0.9322273f, 41.03323f,
-            0.0975675f, 0.9779130f, -0.1848422f, 450.21365f})};
+      poseFromRows({-0.0814722f, 0.9500718f, -0.3012074f, 13.52012f, -0.1851757f, 0.2825210f, 0.9412183f, 1.77226f,
+                    0.9793223f, 0.1324593f, 0.1529126f, 447.18512f}),
+      poseFromRows({0.9496958f, -0.0359483f, 0.3111040f, -0.44647f, 0.2975879f, -0.2058975f, -0.9322273f, 41.03323f,
+                    0.0975675f, 0.9779130f, -0.1848422f, 450.21365f})};
   // Copy 20 loses its side beyond x = 25 mm, so that it scores below copy 22 and is judged
   // second, as in the bin (0.67 against 0.80 there).
   const PointCloud scan =
@@ -251,14 +251,12 @@ TEST(Detector, PoseJustShortOfThePrescreenIsRetried) {
       {0.0947923064f, 0.989658594f, 0.107657686f, 81.3926926f, 0.964822412f, -0.0646936297f, -0.25481832f, 2.34456706f, -0.245218411f, 0.128025368f, -0.960977316f, 472.936584f},
       {0.274057865f, -0.936890841f, 0.217089057f, -25.6144218f, 0.931621671f, 0.202605367f, -0.301715016f, -52.1207466f, 0.238690645f, 0.284932256f, 0.928353429f, 475.438751f}
   };
-  Pose camera_from_world = Pose::Identity();  // bench/'s sensor, 500 mm above the bin's floor
-  camera_from_world.matrix().block<3, 4>(0, 0) << 1, 0, 0, 0, 0, -1, 0, 0, 0, 0, -1, 500;
+  // bench/'s sensor looks down from 500 mm above the bin's floor.
+  const Pose world_from_camera = poseFromRows({1, 0, 0, 0, 0, -1, 0, 0, 0, 0, -1, 500}).inverse();
   std::vector<Pose> truth, world;
   for (const auto& r : rows) {
-    Pose pose = Pose::Identity();
-    for (int i = 0; i < 12; ++i) pose.matrix()(i / 4, i % 4) = r[i];
-    truth.push_back(pose);
-    world.push_back(camera_from_world.inverse() * pose);
+    truth.push_back(poseFromRows(r));
+    world.push_back(world_from_camera * truth.back());
   }
   const SimulatedScene bin = renderBin(mesh, world, BinParams{}, SensorParams{}, 105);
   const DetectionResult result = Detector(db, scaledToModel(fastPreset(), db.model().diameter)).detect(bin.cloud);
