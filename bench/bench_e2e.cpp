@@ -190,6 +190,7 @@ struct Outcome {
   double train_ms = 0;
   std::vector<double> detect_ms;
   std::vector<Pose> poses;
+  std::vector<DetectionTiming> stages;  ///< binpose's stage times, one per run
 };
 
 Outcome runBinpose(const OrientedModel& model, const PointCloud& scan, const std::string& preset, int repeats,
@@ -205,6 +206,7 @@ Outcome runBinpose(const OrientedModel& model, const PointCloud& scan, const std
     const auto t = Clock::now();
     const DetectionResult result = detector.detect(scan);
     out.detect_ms.push_back(msSince(t));
+    out.stages.push_back(result.timing);
     if (r == 0)
       for (const Detection& d : result.detections) out.poses.push_back(d.pose);
   }
@@ -327,6 +329,17 @@ int runOne(const Options& o) {
             {"angle_deg", rep.mean_angle_deg},
             {"peak_rss_mib", static_cast<double>(usage.ru_maxrss) / 1024.0},
             {"peak_above_input_mib", static_cast<double>(std::max(0L, usage.ru_maxrss - baseline)) / 1024.0}};
+  if (!r.stages.empty()) {  // binpose's stages, each the median over the runs
+    const auto stage = [&](double DetectionTiming::*field) {
+      std::vector<double> v;
+      for (const DetectionTiming& t : r.stages) v.push_back(t.*field);
+      return median(v);
+    };
+    j["stage_ms_median"] = {{"preprocess", stage(&DetectionTiming::preprocess_ms)},
+                            {"vote", stage(&DetectionTiming::vote_ms)},
+                            {"match", stage(&DetectionTiming::match_ms)},
+                            {"refine", stage(&DetectionTiming::refine_ms)}};
+  }
   std::fputs((j.dump() + "\n").c_str(), stdout);
   return 0;
 }
