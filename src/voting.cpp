@@ -292,8 +292,12 @@ void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t
   const std::size_t n_model = db_.model().points.size();
   const auto features = std::max<std::size_t>(1, keys_.size());
   const auto most = static_cast<std::uint32_t>(weigh_rare_ ? std::max<std::size_t>(1, 65535 / features) : 1);
+  // The keys' table entries are fetched kKeysAhead keys before they are read.
+  constexpr std::size_t kKeysAhead = 16;
+  for (std::size_t a = 0; a < std::min(kKeysAhead, keys_.size()); ++a) db_.prefetch(keys_[a]);
   for (std::size_t a = 0, b = 0; a < keys_.size(); a = b) {
     while (b < keys_.size() && keys_[b] == keys_[a]) ++b;
+    if (b + kKeysAhead < keys_.size()) db_.prefetch(keys_[b + kKeysAhead]);
     const auto ids = db_.lookup(keys_[a]);
     if (ids.empty() || ids.size() > max_list_) continue;  // a feature nearly every model point has: no information
     const std::uint32_t weight = weigh_rare_ ? std::min(most, keyWeight(n_model, ids.size())) : 1;

@@ -53,6 +53,13 @@ class ModelDatabase {
     if (key >= keys_.size()) return {};
     return {entries_.data() + offsets_[key], entries_.data() + offsets_[key + 1]};
   }
+  /// Starts fetching what lookup(key) and denseBits(key) read first (the table does not fit in
+  /// the cache: a caller that knows its next keys hides the misses).
+  void prefetch(std::uint32_t key) const {
+    if (key >= keys_.size()) return;
+    __builtin_prefetch(offsets_.data() + key);
+    __builtin_prefetch(dense_slot_.data() + key);
+  }
   /// The same model points as lookup(key), as a bitset of model().points.size() bits (64 to a
   /// word, zeros after the last point up to a multiple of 256 bits), for a key listing at least
   /// denseListSize() points; empty for a shorter list.
