@@ -187,6 +187,18 @@ int Graph::degree(int v) const {
   return d;
 }
 
+void Graph::isolate(std::span<const int> vertices) {
+  for (const int v : vertices) {
+    std::uint64_t* row = mutableRow(v);
+    for (int w = 0; w < words_; ++w)
+      for (std::uint64_t bits = row[w]; bits; bits &= bits - 1) {
+        const int u = w * 64 + std::countr_zero(bits);
+        mutableRow(u)[v / 64] &= ~(1ull << (v % 64));
+      }
+    std::fill_n(row, words_, std::uint64_t{0});
+  }
+}
+
 CliqueResult maximumClique(const Graph& g, std::uint64_t work_limit) {
   if (g.size() == 0) return {};
   const int n = g.size();

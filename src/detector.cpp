@@ -145,15 +145,27 @@ struct Matcher {
   }
 
  private:
-  /// Clique and closed-form pose; false when there is none. The pose goes into the outcome.
+  /// Clique and closed-form pose (a refused mirror-image clique gives way to the next, up to
+  /// mirror_retries times); false when there is none. The pose goes into the outcome.
   bool match(Slot& s) const {
     const Points& model = db.model().points;
     if (s.candidates.size() < static_cast<std::size_t>(p.C_n)) return false;
-    const Graph graph = orbits != nullptr ? revolutionConsistencyGraph(s.candidates, scene.points, scene.normals, *orbits,
-                                                                       p.e_gmax, p.revolution_angle_tolerance)
-                                          : consistencyGraph(s.candidates, scene.points, model, p.e_gmax);
-    const CliqueResult clique = maximumClique(graph, p.clique_work_limit);
-    if (clique.vertices.size() < static_cast<std::size_t>(p.C_n)) return false;
+    Graph graph = orbits != nullptr ? revolutionConsistencyGraph(s.candidates, scene.points, scene.normals, *orbits,
+                                                                 p.e_gmax, p.revolution_angle_tolerance)
+                                    : consistencyGraph(s.candidates, scene.points, model, p.e_gmax);
+    for (int retry = 0;; ++retry) {
+      const CliqueResult clique = maximumClique(graph, p.clique_work_limit);
+      if (clique.vertices.size() < static_cast<std::size_t>(p.C_n)) return false;
+      if (fitClique(s, clique)) return true;
+      // A mirror image (or a degenerate set): the next largest clique without its pairs.
+      if (orbits != nullptr || retry >= p.mirror_retries) return false;
+      graph.isolate(clique.vertices);
+    }
+  }
+
+  /// The closed-form pose of a clique's pairs into the outcome; false when there is none.
+  bool fitClique(Slot& s, const CliqueResult& clique) const {
+    const Points& model = db.model().points;
     s.clique_scene.clear();
     for (const int v : clique.vertices) s.clique_scene.push_back(scene.points[s.candidates[v].scene]);
     PoseFit fit;

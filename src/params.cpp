@@ -58,6 +58,7 @@ void visit(json& j, DetectionParams& p, bool write) {
   field(j, "tried_share", p.tried_share, write);
   field(j, "max_instances", p.max_instances, write);
   field(j, "clique_work_limit", p.clique_work_limit, write);
+  field(j, "mirror_retries", p.mirror_retries, write);
   field(j, "seed", p.seed, write);
   if (write) {
     j["subsampling"] = p.subsampling == Subsampling::Random ? "random" : "voxel";
@@ -98,6 +99,7 @@ DetectionParams thesisPreset() {
   p.prescreen = false;
   p.remove_planes = false;
   p.use_revolution = false;
+  p.mirror_retries = 0;
   return p;
 }
 
@@ -194,6 +196,8 @@ void validate(const DetectionParams& p) {
   if (!(p.max_key_share > 0 && p.max_key_share <= 1)) throw Error(fmt::format("max_key_share must lie in (0, 1], got {}", p.max_key_share));
   if (p.max_instances < 0) throw Error(fmt::format("max_instances must be >= 0, got {}", p.max_instances));
   if (p.clique_work_limit < 1) throw Error("clique_work_limit must be >= 1");
+  if (p.mirror_retries < 0 || p.mirror_retries > 10)
+    throw Error(fmt::format("mirror_retries must lie in [0, 10], got {}", p.mirror_retries));
   if (p.revolution_candidates < 1 || p.revolution_candidates > 64)
     throw Error(fmt::format("revolution_candidates must lie in [1, 64], got {}", p.revolution_candidates));
   if (!(p.revolution_angle_tolerance > 0 && p.revolution_angle_tolerance < 90))

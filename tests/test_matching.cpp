@@ -133,6 +133,27 @@ TEST(Clique, ThirtyVerticesAndAPlantedClique) {
   }
 }
 
+TEST(Clique, IsolatedVerticesLeaveTheNextLargestClique) {
+  // Two planted cliques on 90 vertices (random edges at 0.3): isolating the larger one's
+  // vertices leaves the smaller as the maximum, and no edge of an isolated vertex remains.
+  Rng rng(8);
+  const int n = 90;
+  Graph g = randomGraph(n, 0.3, rng);
+  std::vector<int> large, small;
+  for (int v = 0; v < 14; ++v) large.push_back(5 * v + 2);   // 2, 7, ..., 67
+  for (int v = 0; v < 10; ++v) small.push_back(5 * v + 4);   // 4, 9, ..., 49
+  for (const auto* c : {&large, &small})
+    for (std::size_t i = 0; i < c->size(); ++i)
+      for (std::size_t j = i + 1; j < c->size(); ++j) g.addEdge((*c)[i], (*c)[j]);
+  ASSERT_EQ(maximumClique(g).vertices, large);
+  g.isolate(large);
+  for (const int v : large) {
+    EXPECT_EQ(g.degree(v), 0) << "vertex " << v;
+    for (int u = 0; u < n; ++u) EXPECT_FALSE(g.adjacent(u, v)) << u << "-" << v;
+  }
+  EXPECT_EQ(maximumClique(g).vertices, small);
+}
+
 TEST(Clique, ConsistencyGraphFollowsEquations13To16) {
   // A rigid copy of 60 model points (all consistent) plus 90 random pairs, over three bit words.
   Rng rng(12);

@@ -25,6 +25,8 @@ class Graph {
   [[nodiscard]] int size() const { return n_; }
   [[nodiscard]] int words() const { return words_; }
   [[nodiscard]] int degree(int v) const;
+  /// Removes every edge of the listed vertices (they stay, alone).
+  void isolate(std::span<const int> vertices);
 
  private:
   int n_, words_;
