@@ -93,6 +93,7 @@ struct Matcher {
   const SceneEvidence& evidence;
   const NeighbourhoodVoter* local;  ///< the local votes (null: each sub-group votes, 4.3)
   const Orbits* orbits;             ///< a body of revolution's (null: matched point to point)
+  const CyclicSymmetry* cyclic;     ///< a part of n-fold symmetry's (candidates: class members)
   /// True when a pose is another of an object already found (explain_score), or close to a
   /// clique pose already verified (tried_share): its clique is not verified again.
   std::function<bool(const Pose&)> seen;
@@ -152,6 +153,8 @@ struct Matcher {
     if (s.candidates.size() < static_cast<std::size_t>(p.C_n)) return false;
     Graph graph = orbits != nullptr ? revolutionConsistencyGraph(s.candidates, scene.points, scene.normals, *orbits,
                                                                  p.e_gmax, p.revolution_angle_tolerance)
+                    : cyclic != nullptr ? cyclicConsistencyGraph(s.candidates, scene.points, scene.normals, db.model(), *cyclic,
+                                                                                 p.e_gmax, p.revolution_angle_tolerance)
                                     : consistencyGraph(s.candidates, scene.points, model, p.e_gmax);
     for (int retry = 0;; ++retry) {
       const CliqueResult clique = maximumClique(graph, p.clique_work_limit);
@@ -182,7 +185,8 @@ struct Matcher {
     } else {
       s.clique_model.clear();
       for (const int v : clique.vertices) s.clique_model.push_back(model[s.candidates[v].model]);
-      fit = solvePose(s.clique_model, s.clique_scene);
+      fit = cyclic != nullptr ? solveCyclicPose(*cyclic, s.clique_model, s.clique_scene)
+                              : solvePose(s.clique_model, s.clique_scene);
     }
     if (!fit.ok) return false;
     for (const int v : clique.vertices) s.outcome.clique.push_back(s.candidates[v]);
@@ -250,6 +254,8 @@ Detector::Detector(const ModelDatabase& db, const DetectionParams& params)
   if (params_.use_revolution)
     if (const auto axis = findRevolutionAxis(db.model()))
       orbits_ = makeOrbits(db, *axis, db.model().sample_radius);
+  if (params_.use_cyclic_symmetry && !orbits_)
+    if ((cyclic_ = findCyclicSymmetry(db.model()))) classes_ = makeCyclicClasses(db, *cyclic_);
 }
 
 bool Detector::nearModel(const Vec3& x, float distance) const {
@@ -266,8 +272,12 @@ bool Detector::samePose(const Pose& a, const Pose& b, float share) const {
     const Vec3& axis = orbits_->axis.direction;
     return model_radius_ * (a.linear() * axis - b.linear() * axis).norm() <= tolerance;
   }
-  // A turn by angle t moves a point at distance r from its axis by 2 r sin(t / 2).
-  const float turn = Eigen::AngleAxisf(a.linear().transpose() * b.linear()).angle();
+  // A turn by angle t moves a point at distance r from its axis by 2 r sin(t / 2); for a part of
+  // n-fold symmetry, the least turn from a to one of b's n images.
+  float turn = Eigen::AngleAxisf(a.linear().transpose() * b.linear()).angle();
+  if (cyclic_)
+    for (int k = 1; k < cyclic_->order; ++k)
+      turn = std::min(turn, Eigen::AngleAxisf(a.linear().transpose() * b.linear() * cyclic_->turn(k).linear()).angle());
   return 2.0f * model_radius_ * std::sin(0.5f * turn) <= tolerance;
 }
 
@@ -349,8 +359,8 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
         std::vector<std::uint32_t> partners;
         if (p.partner_spacing > 0) partners = voxelSubsample(scene.points, p.partner_spacing);
         local = std::make_unique<NeighbourhoodVoter>(db_, scene.points, scene.normals, p.vote_radius,
-                                                     candidatesPerPoint(p, orbits()), max_list, partners, p.candidate_spacing,
-                                                     p.weigh_rare_keys, orbits());
+                                                     candidatesPerPoint(p, votingOrbits()), max_list, partners, p.candidate_spacing,
+                                                     p.weigh_rare_keys, votingOrbits());
         may_vote.assign(scene.points.size(), p.voter_spacing > 0 ? 0 : 1);
         if (p.voter_spacing > 0)
           for (const auto i : voxelSubsample(scene.points, p.voter_spacing)) may_vote[i] = 1;
@@ -367,7 +377,7 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
     return std::any_of(found.begin(), found.end(), [&](const Pose& f) { return samePose(pose, f); }) ||
            std::any_of(tried.begin(), tried.end(), [&](const Pose& t) { return samePose(pose, t, p.tried_share); });
   };
-  const Matcher matcher{db_, p, icp_model_, scene, scan, scan_grid, evidence, local.get(), orbits(), seen};
+  const Matcher matcher{db_, p, icp_model_, scene, scan, scan_grid, evidence, local.get(), orbits(), cyclicSymmetry(), seen};
   std::vector<char> removed(scene.points.size(), 0);
   std::vector<Hypothesis> hypotheses;
   int confident = 0;  // detections that removed their points
@@ -413,10 +423,10 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
                                                     tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
   const std::size_t batch = 4 * std::max<std::size_t>(1, threads);
   std::vector<Slot> slots;
-  for (std::size_t k = 0; k < batch; ++k) slots.emplace_back(db_, p, max_list, orbits());
+  for (std::size_t k = 0; k < batch; ++k) slots.emplace_back(db_, p, max_list, votingOrbits());
   GroupOutcome earlier;
-  ParallelVoter parallel(db_, candidatesPerPoint(p, orbits()), max_list, p.candidate_spacing, p.weigh_rare_keys,
-                         orbits());  // for those run again
+  ParallelVoter parallel(db_, candidatesPerPoint(p, votingOrbits()), max_list, p.candidate_spacing, p.weigh_rare_keys,
+                         votingOrbits());  // for those run again
   std::vector<std::uint32_t> voters;
   double work_ms = 0, group_vote_ms = 0, group_match_ms = 0, group_refine_ms = 0;  // see below
   const auto t_match = Clock::now();

@@ -12,12 +12,6 @@
 namespace binpose {
 namespace {
 
-/// Two unit vectors completing `z` to a right-handed basis (the same for the same z).
-void basisAround(const Vec3& z, Vec3& x, Vec3& y) {
-  const Vec3 helper = std::abs(z.x()) < 0.6f ? Vec3::UnitX() : Vec3::UnitY();
-  x = (helper - helper.dot(z) * z).normalized();
-  y = z.cross(x);
-}
 
 /// True when every turn in the test set keeps at least 97% of the points within `tolerance`.
 bool isRevolutionAxis(const Points& points, const KdTree& tree, const Vec3& centre, const Vec3& axis, float tolerance) {
@@ -226,6 +220,12 @@ Pose axisPose(const Orbits& orbits, const Vec3& first, const Vec3& a, const Vec3
 }
 
 }  // namespace
+
+void basisAround(const Vec3& z, Vec3& x, Vec3& y) {
+  const Vec3 helper = std::abs(z.x()) < 0.6f ? Vec3::UnitX() : Vec3::UnitY();
+  x = (helper - helper.dot(z) * z).normalized();
+  y = z.cross(x);
+}
 
 std::optional<RevolutionAxis> findRevolutionAxis(const OrientedModel& model, float tolerance) {
   const Points& pts = model.points;

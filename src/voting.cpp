@@ -271,10 +271,13 @@ void Voter::countDense() {
 
 Voter::Voter(const ModelDatabase& db, int keep, std::uint32_t max_list, float spacing, bool weigh_rare, const Orbits* orbits)
     : db_(db), keep_(keep), weigh_rare_(weigh_rare), max_list_(max_list), spacing_(spacing),
-      counters_(orbits != nullptr ? orbits->count : db.model().points.size()),
-      votes_(256 * ((counters_ + 255) / 256), 0), bitsets_(orbits == nullptr && detail::haveAvx2()), orbits_(orbits) {
-  if (orbits_ != nullptr && orbits_->of.size() != db.model().points.size())
-    throw Error(fmt::format("orbits of {} points for a model of {}", orbits_->of.size(), db.model().points.size()));
+      orbits_(orbits != nullptr && !orbits->cyclic ? orbits : nullptr),
+      classes_(orbits != nullptr && orbits->cyclic ? orbits : nullptr) {
+  if (orbits != nullptr && orbits->of.size() != db.model().points.size())
+    throw Error(fmt::format("orbits of {} points for a model of {}", orbits->of.size(), db.model().points.size()));
+  counters_ = orbits_ != nullptr ? orbits_->count : db.model().points.size();
+  votes_.assign(256 * ((counters_ + 255) / 256), 0);
+  bitsets_ = orbits_ == nullptr && detail::haveAvx2();
 }
 
 void Voter::useBitsets(bool on) { bitsets_ = on && orbits_ == nullptr && detail::haveAvx2(); }
@@ -363,8 +366,9 @@ void Voter::select(std::uint32_t k, std::vector<Correspondence>& out) {
   votesAbove(votes, above, outliers_);
   const auto value = [this](std::size_t m) { return std::uint32_t{votes_[m]}; };
   // A body of revolution's accumulator is over its orbits: each one's first point stands for it.
+  // A part of cyclic symmetry's over its points: each stands for its class, by the class member.
   const auto model_point = [this](std::size_t m) {
-    return static_cast<std::uint32_t>(orbits_ != nullptr ? orbits_->member[m] : m);
+    return static_cast<std::uint32_t>(orbits_ != nullptr ? orbits_->member[m] : classes_ != nullptr ? classes_->member[classes_->of[m]] : m);
   };
   if (keep_ <= 1 || spacing_ <= 0) {
     keepBest(outliers_, keep_, value);
@@ -373,7 +377,8 @@ void Voter::select(std::uint32_t k, std::vector<Correspondence>& out) {
   }
   // The upper outliers best first (sorted a batch at a time: usually the first batch holds all
   // that are kept); each kept unless a better one kept lies within spacing_.
-  // Distances between model points, or between their orbits in the axis's half-plane.
+  // Distances between model points (class members: a class's images are one candidate), or
+  // between orbits in the axis's half-plane.
   const auto where = [this](std::uint32_t m) -> Vec3 {
     return orbits_ != nullptr ? orbits_->inPlane(orbits_->of[m]) : db_.model().points[m];
   };

@@ -1,6 +1,7 @@
 #pragma once
 // Online recognition (thesis chapters 4-5): scan -> preprocess -> sub-groups -> votes ->
 // correspondences -> clique -> pose -> detections, removing each found object's points.
+#include <binpose/cyclic_symmetry.hpp>
 #include <binpose/point_grid.hpp>
 #include <binpose/model_database.hpp>
 #include <binpose/params.hpp>
@@ -56,6 +57,8 @@ class Detector {
   [[nodiscard]] const DetectionParams& params() const { return params_; }
   /// The model's orbits when it is matched as a body of revolution (use_revolution), else null.
   [[nodiscard]] const Orbits* orbits() const { return orbits_ ? &*orbits_ : nullptr; }
+  /// The model's n-fold symmetry when it is matched by classes of images (use_cyclic_symmetry), else null.
+  [[nodiscard]] const CyclicSymmetry* cyclicSymmetry() const { return cyclic_ ? &*cyclic_ : nullptr; }
 
  private:
   /// True when over half of the model's points (the ICP share of them), posed by `a`, lie
@@ -83,6 +86,10 @@ class Detector {
   float model_radius_ = 0;  ///< largest distance of a model point from the centroid
   Vec3 model_lo_, model_hi_;  ///< the model points' bounding box
   std::optional<Orbits> orbits_;
+  std::optional<CyclicSymmetry> cyclic_;
+  std::optional<Orbits> classes_;  ///< cyclic_'s classes of images
+  /// What the votes go to: orbits_ or classes_ (null: model points).
+  [[nodiscard]] const Orbits* votingOrbits() const { return orbits_ ? &*orbits_ : classes_ ? &*classes_ : nullptr; }
 };
 
 }  // namespace binpose

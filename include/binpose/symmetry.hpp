@@ -17,6 +17,9 @@
 namespace binpose {
 
 /// The axis of a body of revolution, in the model's frame.
+/// Two unit vectors completing `z` (unit) to a right-handed basis (the same for the same z).
+void basisAround(const Vec3& z, Vec3& x, Vec3& y);
+
 struct RevolutionAxis {
   Vec3 point = Vec3::Zero();      ///< a point of the axis (the model points' centroid), mm
   Vec3 direction = Vec3::UnitZ(); ///< unit
@@ -45,6 +48,9 @@ struct Orbits {
   std::uint32_t count = 0;            ///< orbits
   std::vector<std::uint32_t> member;  ///< per orbit: its lowest model point, which stands for it
   std::vector<ProfilePoint> profile;  ///< per orbit: its points' mean (normal tilt renormalised)
+  /// Classes of a discrete symmetry's images (cyclic_symmetry.hpp), not rings: votes go to
+  /// model points, and a point's candidates are its classes' members (no lists by key).
+  bool cyclic = false;
   /// An orbit's (r, z, 0): distances between orbits in the axis's half-plane.
   [[nodiscard]] Vec3 inPlane(std::uint32_t orbit) const { return {profile[orbit].r, profile[orbit].z, 0.0f}; }
   /// The orbits of the model points under `key` (ModelDatabase::lookup), ascending.

@@ -104,6 +104,7 @@ class Voter {
   std::vector<std::uint32_t> histogram_;  ///< the accumulator's histogram (four side by side)
   std::vector<std::size_t> outliers_;     ///< model points whose votes are upper outliers
   const Orbits* orbits_;                  ///< a body of revolution's (votes_ then per orbit)
+  const Orbits* classes_;                 ///< a cyclic symmetry's: candidates are class members
 };
 
 /// Voter::vote with the points of a group shared among threads: the same pairs in the same

@@ -1,0 +1,113 @@
+// Parts of n-fold symmetry (cyclic_symmetry.hpp): the symmetry found on IPD obj 8 (17 teeth,
+// per its models_info.json) and on no other part, the consistency graph and the pose of
+// correspondences whose model points are any of their images, against poses known exactly.
+#include <binpose/clique.hpp>
+#include <binpose/cyclic_symmetry.hpp>
+#include <binpose/io.hpp>
+#include <binpose/model.hpp>
+
+#include "test_util.hpp"
+
+#include <random>
+
+using namespace binpose;
+
+namespace {
+
+/// A made-up part of 5-fold symmetry about the z axis through (10, -20, 5): the 5 images of 40
+/// random oriented points. Members (one image of each) are points 0..39.
+struct FiveFold {
+  CyclicSymmetry sym{RevolutionAxis{Vec3(10, -20, 5), Vec3::UnitZ()}, 5};
+  OrientedModel model;
+  explicit FiveFold(std::uint64_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+    Points base, normals;
+    for (int i = 0; i < 40; ++i) {
+      base.push_back(sym.axis.point + Vec3(30 * u(rng), 30 * u(rng), 10 * u(rng)));
+      normals.push_back(Vec3(u(rng), u(rng), u(rng)).normalized());
+    }
+    for (int k = 0; k < sym.order; ++k)
+      for (int i = 0; i < 40; ++i) {
+        model.points.push_back(sym.turn(k) * base[i]);
+        model.normals.push_back(sym.turn(k).linear() * normals[i]);
+      }
+    model.diameter = 90;
+    model.sample_radius = 1;
+  }
+};
+
+Pose somePose() {
+  Pose pose = Pose::Identity();
+  pose.linear() = Eigen::AngleAxisf(0.7f, Vec3(1, 2, -1).normalized()).toRotationMatrix();
+  pose.translation() = Vec3(40, -15, 480);
+  return pose;
+}
+
+/// The least difference between `pose` and truth * turn(k) over the turns k, as the largest
+/// entry of the difference of their 4 x 4 matrices.
+float offBySymmetry(const Pose& pose, const Pose& truth, const CyclicSymmetry& sym) {
+  float best = INFINITY;
+  for (int k = 0; k < sym.order; ++k) {
+    const Eigen::Matrix4f d = pose.matrix() - (truth * sym.turn(k)).matrix();
+    best = std::min(best, d.cwiseAbs().maxCoeff());
+  }
+  return best;
+}
+
+}  // namespace
+
+TEST(CyclicSymmetry, SeventeenTeethOfIpdObj8AndNoSymmetryOfObj0) {
+  REQUIRE_DATA("ipd_parts/models/obj_000008.ply");
+  const OrientedModel gear = prepareModel(readMesh(test::dataPath("ipd_parts/models/obj_000008.ply")), ModelParams{});
+  const auto sym = findCyclicSymmetry(gear);
+  ASSERT_TRUE(sym.has_value());
+  EXPECT_EQ(sym->order, 17);  // models_info.json: 16 turns about the model's y axis, and the identity
+  EXPECT_GT(std::abs(sym->axis.direction.dot(Vec3::UnitY())), 0.999f);
+  // The axis passes through the model's origin (its listed turns move nothing there).
+  const Vec3 p = sym->axis.point;
+  EXPECT_LT(std::hypot(p.x(), p.z()), 1.0f) << "axis through " << p.transpose();
+
+  const OrientedModel part = prepareModel(readMesh(test::dataPath("ipd_parts/models/obj_000000.ply")), ModelParams{});
+  EXPECT_FALSE(findCyclicSymmetry(part).has_value());  // models_info.json lists none
+}
+
+TEST(CyclicSymmetry, PoseFromPointsTakenAtAnyOfTheirImages) {
+  const FiveFold part(3);
+  const Pose truth = somePose();
+  std::mt19937 rng(11);
+  Points members, scene;
+  for (int i = 0; i < 12; ++i) {
+    const int k = static_cast<int>(rng() % 5);
+    members.push_back(part.model.points[i]);
+    scene.push_back(truth * part.sym.turn(k) * part.model.points[i]);
+  }
+  const PoseFit fit = solveCyclicPose(part.sym, members, scene);
+  ASSERT_TRUE(fit.ok);
+  EXPECT_LT(fit.rms, 1e-3f);
+  EXPECT_LT(offBySymmetry(fit.pose, truth, part.sym), 1e-3f);
+  // Taken as they are, the same pairs fit no rigid pose.
+  const PoseFit plain = solvePose(members, scene);
+  EXPECT_TRUE(!plain.ok || plain.rms > 1.0f) << "rms " << plain.rms;
+}
+
+TEST(CyclicSymmetry, RightPairsAreLinkedWhateverTheirImagesAndFormTheLargestClique) {
+  const FiveFold part(5);
+  const Pose truth = somePose();
+  std::mt19937 rng(17);
+  Points scene, scene_normals;
+  std::vector<Correspondence> cps;
+  for (std::uint32_t i = 0; i < 15; ++i) {
+    const Pose image = truth * part.sym.turn(static_cast<int>(rng() % 5));
+    scene.push_back(image * part.model.points[i]);
+    scene_normals.push_back(image.linear() * part.model.normals[i]);
+    cps.push_back({i, i});                                          // right, at some image
+    cps.push_back({i, static_cast<std::uint32_t>(20 + rng() % 20)});  // a wrong member
+  }
+  const Graph g = cyclicConsistencyGraph(cps, scene, scene_normals, part.model, part.sym, 0.5f, 10.0f);
+  for (int a = 0; a < 30; a += 2)
+    for (int b = a + 2; b < 30; b += 2) EXPECT_TRUE(g.adjacent(a, b)) << "right pairs " << a / 2 << ", " << b / 2;
+  const CliqueResult clique = maximumClique(g, 1000000);
+  ASSERT_EQ(clique.vertices.size(), 15u);
+  for (const int v : clique.vertices) EXPECT_EQ(v % 2, 0) << "wrong candidate of point " << v / 2 << " in the clique";
+}
