@@ -4,7 +4,6 @@
 
 #include <binpose/kdtree.hpp>
 
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -17,22 +16,6 @@ namespace binpose {
 namespace {
 
 constexpr float kTwoPi = 2.0f * float(M_PI);
-
-/// True when the turn by `angle` about the axis keeps at least 97% of the points within
-/// `tolerance` of a point.
-bool keepsShape(const Points& points, const KdTree& tree, const Vec3& centre, const Vec3& axis, float angle,
-                float tolerance) {
-  const Eigen::AngleAxisf turn(angle, axis);
-  const auto allowed = static_cast<std::size_t>(0.03 * static_cast<double>(points.size()));
-  std::size_t off = 0;
-  for (const Vec3& p : points) {
-    std::uint32_t j;
-    float d2;
-    if (!tree.nearest(centre + turn * (p - centre), j, d2) || d2 > tolerance * tolerance) ++off;
-    if (off > allowed) return false;
-  }
-  return true;
-}
 
 /// A point's coordinates about the axis: (x, y) in the plane across it, z along it.
 struct AxisFrame {
@@ -66,22 +49,18 @@ std::optional<CyclicSymmetry> findCyclicSymmetry(const OrientedModel& model, int
   if (pts.size() < 10 || max_order < 3) return std::nullopt;
   if (tolerance <= 0) tolerance = 1.5f * model.sample_radius;
   if (!(tolerance > 0)) return std::nullopt;
-  Vec3 centre = Vec3::Zero();
-  for (const Vec3& p : pts) centre += p;
-  centre /= static_cast<float>(pts.size());
-  Eigen::Matrix3f cov = Eigen::Matrix3f::Zero();
-  for (const Vec3& p : pts) cov += (p - centre) * (p - centre).transpose();
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3f> eig(cov);
+  const PrincipalAxes principal = principalAxes(pts);
+  const Vec3& centre = principal.centre;
   const KdTree tree(pts);
   std::optional<CyclicSymmetry> best;
   for (int c = 0; c < 3; ++c) {
-    const Vec3 axis = eig.eigenvectors().col(c).normalized();
+    const Vec3 axis = principal.axes.col(c).normalized();
     for (int n = max_order; n >= 3 && (!best || n > best->order); --n) {
       // Every turn, not just 2 pi / n: a ring of 17 teeth turned by 2 pi / 21 is off by a fifth
       // of a tooth, within the tolerance, but by two fifths at twice that turn.
       const float step = kTwoPi / static_cast<float>(n);
       bool all = true;
-      for (int k = 1; k <= n / 2 && all; ++k) all = keepsShape(pts, tree, centre, axis, step * static_cast<float>(k), tolerance);
+      for (int k = 1; k <= n / 2 && all; ++k) all = turnKeepsShape(pts, tree, centre, axis, step * static_cast<float>(k), tolerance);
       if (all) {
         best = CyclicSymmetry{RevolutionAxis{centre, axis}, n};
         break;
@@ -110,7 +89,6 @@ Orbits makeCyclicClasses(const ModelDatabase& db, const CyclicSymmetry& sym) {
     if (turns[i] == 0) {
       o.member.push_back(static_cast<std::uint32_t>(i));
       in_wedge.push_back(model.points[i]);
-      o.profile.push_back(profileOf(sym.axis, model.points[i], model.normals[i]));
     }
   }
   o.count = static_cast<std::uint32_t>(o.member.size());

@@ -151,11 +151,13 @@ struct Matcher {
   bool match(Slot& s) const {
     const Points& model = db.model().points;
     if (s.candidates.size() < static_cast<std::size_t>(p.C_n)) return false;
-    Graph graph = orbits != nullptr ? revolutionConsistencyGraph(s.candidates, scene.points, scene.normals, *orbits,
-                                                                 p.e_gmax, p.revolution_angle_tolerance)
-                    : cyclic != nullptr ? cyclicConsistencyGraph(s.candidates, scene.points, scene.normals, db.model(), *cyclic,
-                                                                                 p.e_gmax, p.revolution_angle_tolerance)
-                                    : consistencyGraph(s.candidates, scene.points, model, p.e_gmax);
+    Graph graph = orbits != nullptr
+                      ? revolutionConsistencyGraph(s.candidates, scene.points, scene.normals, *orbits, p.e_gmax,
+                                                   p.revolution_angle_tolerance)
+                  : cyclic != nullptr
+                      ? cyclicConsistencyGraph(s.candidates, scene.points, scene.normals, db.model(), *cyclic, p.e_gmax,
+                                               p.revolution_angle_tolerance)
+                      : consistencyGraph(s.candidates, scene.points, model, p.e_gmax);
     for (int retry = 0;; ++retry) {
       const CliqueResult clique = maximumClique(graph, p.clique_work_limit);
       if (clique.vertices.size() < static_cast<std::size_t>(p.C_n)) return false;
@@ -274,10 +276,11 @@ bool Detector::samePose(const Pose& a, const Pose& b, float share) const {
   }
   // A turn by angle t moves a point at distance r from its axis by 2 r sin(t / 2); for a part of
   // n-fold symmetry, the least turn from a to one of b's n images.
-  float turn = Eigen::AngleAxisf(a.linear().transpose() * b.linear()).angle();
+  const Eigen::Matrix3f a_to_b = a.linear().transpose() * b.linear();
+  float turn = Eigen::AngleAxisf(a_to_b).angle();
   if (cyclic_)
     for (int k = 1; k < cyclic_->order; ++k)
-      turn = std::min(turn, Eigen::AngleAxisf(a.linear().transpose() * b.linear() * cyclic_->turn(k).linear()).angle());
+      turn = std::min(turn, Eigen::AngleAxisf(a_to_b * cyclic_->turn(k).linear()).angle());
   return 2.0f * model_radius_ * std::sin(0.5f * turn) <= tolerance;
 }
 

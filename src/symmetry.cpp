@@ -12,21 +12,11 @@
 namespace binpose {
 namespace {
 
-
 /// True when every turn in the test set keeps at least 97% of the points within `tolerance`.
 bool isRevolutionAxis(const Points& points, const KdTree& tree, const Vec3& centre, const Vec3& axis, float tolerance) {
   constexpr float kTurnsDeg[] = {29.0f, 83.0f, 137.0f, 211.0f, 290.0f};
-  for (const float deg : kTurnsDeg) {
-    const Eigen::AngleAxisf turn(deg * float(M_PI) / 180.0f, axis);
-    std::size_t off = 0;
-    const auto allowed = static_cast<std::size_t>(0.03 * static_cast<double>(points.size()));
-    for (const Vec3& p : points) {
-      std::uint32_t j;
-      float d2;
-      if (!tree.nearest(centre + turn * (p - centre), j, d2) || d2 > tolerance * tolerance) ++off;
-      if (off > allowed) return false;
-    }
-  }
+  for (const float deg : kTurnsDeg)
+    if (!turnKeepsShape(points, tree, centre, axis, deg * float(M_PI) / 180.0f, tolerance)) return false;
   return true;
 }
 
@@ -227,26 +217,49 @@ void basisAround(const Vec3& z, Vec3& x, Vec3& y) {
   y = z.cross(x);
 }
 
+PrincipalAxes principalAxes(const Points& points) {
+  PrincipalAxes out;
+  if (points.empty()) return out;
+  for (const Vec3& p : points) out.centre += p;
+  out.centre /= static_cast<float>(points.size());
+  Eigen::Matrix3f cov = Eigen::Matrix3f::Zero();
+  for (const Vec3& p : points) cov += (p - out.centre) * (p - out.centre).transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3f> eig(cov);
+  out.values = eig.eigenvalues();
+  out.axes = eig.eigenvectors();
+  return out;
+}
+
+bool turnKeepsShape(const Points& points, const KdTree& tree, const Vec3& centre, const Vec3& axis, float angle,
+                    float tolerance) {
+  const Eigen::AngleAxisf turn(angle, axis);
+  const auto allowed = static_cast<std::size_t>(0.03 * static_cast<double>(points.size()));
+  std::size_t off = 0;
+  for (const Vec3& p : points) {
+    std::uint32_t j;
+    float d2;
+    if (!tree.nearest(centre + turn * (p - centre), j, d2) || d2 > tolerance * tolerance) ++off;
+    if (off > allowed) return false;
+  }
+  return true;
+}
+
 std::optional<RevolutionAxis> findRevolutionAxis(const OrientedModel& model, float tolerance) {
   const Points& pts = model.points;
   if (pts.size() < 10) return std::nullopt;
   if (tolerance <= 0) tolerance = 1.5f * model.sample_radius;
   if (!(tolerance > 0)) return std::nullopt;
-  Vec3 centre = Vec3::Zero();
-  for (const Vec3& p : pts) centre += p;
-  centre /= static_cast<float>(pts.size());
-  Eigen::Matrix3f cov = Eigen::Matrix3f::Zero();
-  for (const Vec3& p : pts) cov += (p - centre) * (p - centre).transpose();
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3f> eig(cov);
+  const PrincipalAxes principal = principalAxes(pts);
+  const Vec3& centre = principal.centre;
   // The axis of a body of revolution is the principal axis whose eigenvalue stands apart: try
   // the one farthest from the other two first.
-  const Eigen::Vector3f l = eig.eigenvalues();
+  const Eigen::Vector3f& l = principal.values;
   std::array<int, 3> order{0, 1, 2};
   auto apart = [&](int k) { return std::min(std::abs(l[k] - l[(k + 1) % 3]), std::abs(l[k] - l[(k + 2) % 3])); };
   std::sort(order.begin(), order.end(), [&](int a, int b) { return apart(a) > apart(b); });
   const KdTree tree(pts);
   for (const int k : order) {
-    const Vec3 axis = eig.eigenvectors().col(k).normalized();
+    const Vec3 axis = principal.axes.col(k).normalized();
     if (isRevolutionAxis(pts, tree, centre, axis, tolerance)) return RevolutionAxis{centre, axis};
   }
   return std::nullopt;

@@ -41,11 +41,14 @@ Pose poseFromRows(const float (&rows)[12]) {
   return pose;
 }
 
+/// The database of a mesh's part, with the default model and quantization parameters.
+ModelDatabase databaseOf(const Mesh& mesh) {
+  const OrientedModel model = prepareModel(mesh, ModelParams{});
+  return ModelDatabase::build(model, defaultQuantization(model.diameter));
+}
+
 const ModelDatabase& ipdDatabase() {
-  static const ModelDatabase db = [] {
-    const OrientedModel model = prepareModel(readMesh(test::dataPath("ipd_parts/models/obj_000000.ply")), ModelParams{});
-    return ModelDatabase::build(model, defaultQuantization(model.diameter));
-  }();
+  static const ModelDatabase db = databaseOf(readMesh(test::dataPath("ipd_parts/models/obj_000000.ply")));
   return db;
 }
 
@@ -101,6 +104,16 @@ constexpr float kIpd8Bin16[][12] = {
     {-0.398186564f, 0.0726160556f, -0.914425492f, 71.7977219f, -0.301573753f, -0.951812387f, 0.0557353124f, -45.9034462f, -0.866314292f, 0.297959805f, 0.40089798f, 475.331604f},
     {0.0947923064f, 0.989658594f, 0.107657686f, 81.3926926f, 0.964822412f, -0.0646936297f, -0.25481832f, 2.34456706f, -0.245218411f, 0.128025368f, -0.960977316f, 472.936584f},
     {0.274057865f, -0.936890841f, 0.217089057f, -25.6144218f, 0.931621671f, 0.202605367f, -0.301715016f, -52.1207466f, 0.238690645f, 0.284932256f, 0.928353429f, 475.438751f}
+};
+
+/// bench/'s ipd8-16 bin rendered again from kIpd8Bin16 with its seed, with IPD obj 8's mesh,
+/// database and symmetry-aware evaluation model.
+struct Ipd8Bin16 {
+  Mesh mesh = readMesh(test::dataPath("ipd_parts/models/obj_000008.ply"));
+  ModelDatabase db = databaseOf(mesh);
+  std::vector<Pose> truth;
+  SimulatedScene bin = renderBenchBin(mesh, kIpd8Bin16, 105, truth);
+  EvalModel eval = makeEvalModel(mesh, readSymmetries(test::dataPath("ipd_parts/models/models_info.json"), "8"));
 };
 
 }  // namespace
@@ -284,18 +297,13 @@ TEST(Detector, CapsStackedRimToRimAreBothFound) {
 // With `fast`'s retry (two coarse ICP steps, another look) it is found, and nothing wrong is.
 TEST(Detector, PoseJustShortOfThePrescreenIsRetried) {
   REQUIRE_DATA("ipd_parts/models/obj_000008.ply");
-  const Mesh mesh = readMesh(test::dataPath("ipd_parts/models/obj_000008.ply"));
-  const OrientedModel model = prepareModel(mesh, ModelParams{});
-  const ModelDatabase db = ModelDatabase::build(model, defaultQuantization(model.diameter));
-  std::vector<Pose> truth;
-  const SimulatedScene bin = renderBenchBin(mesh, kIpd8Bin16, 105, truth);
+  const Ipd8Bin16 b;
   // Without mirror_retries, as when this copy was first found by the retry: a sub-group that
   // then runs past a mirror-image clique changes which points are left around copy 1.
   DetectionParams params = fastPreset();
   params.mirror_retries = 0;
-  const DetectionResult result = Detector(db, scaledToModel(params, db.model().diameter)).detect(bin.cloud);
-  const EvalModel eval = makeEvalModel(mesh, readSymmetries(test::dataPath("ipd_parts/models/models_info.json"), "8"));
-  EXPECT_TRUE(checkDetections(result, truth, eval, 1)) << "copy 1 missed; " << result.detections.size() << " detections";
+  const DetectionResult result = Detector(b.db, scaledToModel(params, b.db.model().diameter)).detect(b.bin.cloud);
+  EXPECT_TRUE(checkDetections(result, b.truth, b.eval, 1)) << "copy 1 missed; " << result.detections.size() << " detections";
 }
 
 // The same bin with the default preset. IPD obj 8 is a ring of 17 teeth: copies 0, 1, 2 and 7
@@ -304,18 +312,13 @@ TEST(Detector, PoseJustShortOfThePrescreenIsRetried) {
 // (use_cyclic_symmetry) every copy is found; without, these four were missed.
 TEST(Detector, CyclicSymmetryFindsTheFlatViewsOfIpdObj8) {
   REQUIRE_DATA("ipd_parts/models/obj_000008.ply");
-  const Mesh mesh = readMesh(test::dataPath("ipd_parts/models/obj_000008.ply"));
-  const OrientedModel model = prepareModel(mesh, ModelParams{});
-  const ModelDatabase db = ModelDatabase::build(model, defaultQuantization(model.diameter));
-  std::vector<Pose> truth;
-  const SimulatedScene bin = renderBenchBin(mesh, kIpd8Bin16, 105, truth);
-  const Detector detector(db, scaledToModel(defaultPreset(), db.model().diameter));
+  const Ipd8Bin16 b;
+  const Detector detector(b.db, scaledToModel(defaultPreset(), b.db.model().diameter));
   ASSERT_NE(detector.cyclicSymmetry(), nullptr);
   EXPECT_EQ(detector.cyclicSymmetry()->order, 17);
-  const DetectionResult result = detector.detect(bin.cloud);
-  const EvalModel eval = makeEvalModel(mesh, readSymmetries(test::dataPath("ipd_parts/models/models_info.json"), "8"));
+  const DetectionResult result = detector.detect(b.bin.cloud);
   for (const std::size_t copy : {0, 1, 2, 7})
-    EXPECT_TRUE(checkDetections(result, truth, eval, copy)) << "copy " << copy << " missed; " << result.detections.size() << " detections";
+    EXPECT_TRUE(checkDetections(result, b.truth, b.eval, copy)) << "copy " << copy << " missed; " << result.detections.size() << " detections";
 }
 
 // bench/'s ipd0-32 bin of seed offset 1000 (32 copies of IPD obj 0, seed 1104), rendered again

@@ -3,10 +3,10 @@
 // of 17 teeth). The n images of a model point have the same point pair features, so a scene
 // point's votes spread over them, and of the right candidates of a sub-group's points only
 // those that happen to agree on the same image fit one rigid pose (4.5): in a flat view of obj 8,
-// 4-6 of the 10-14 points with a right candidate. Here votes are taken per class of images
-// (each class stands for its point in the wedge [0, 2 pi / n)), two candidates are consistent
-// when some turn of one against the other gives the scene distance, and the pose comes from
-// the turn of each clique point that fits them all.
+// 4-6 of the 10-14 points with a right candidate. Here a point's candidates are classes of
+// images (each class stands for its point in the wedge [0, 2 pi / n)), two candidates are
+// consistent when some turn of one against the other gives the scene pair's distance and
+// angles, and the pose comes from the image of each clique point that fits them all.
 #include <binpose/clique.hpp>
 #include <binpose/model_database.hpp>
 #include <binpose/pose.hpp>
@@ -36,7 +36,8 @@ std::optional<CyclicSymmetry> findCyclicSymmetry(const OrientedModel& model, int
 
 /// The model points grouped into classes of images: a point of the wedge [0, 2 pi / n) about
 /// the axis is its own class's member, any other point joins the class of the wedge point
-/// nearest its image turned into the wedge (Orbits with cyclic = true, no lists by key). Votes
+/// nearest its image turned into the wedge (Orbits with cyclic = true: no profile, no lists by
+/// key). Votes
 /// still go to single points (a class's count would be the most any of its n images has, and
 /// a wrong class would draw n times a wrong point's votes: on obj 8, 0.1 candidates a point
 /// were left against 4-8); a point's candidates are then classes, each once.
@@ -51,10 +52,12 @@ Orbits makeCyclicClasses(const ModelDatabase& db, const CyclicSymmetry& sym);
 Graph cyclicConsistencyGraph(std::span<const Correspondence> cps, const Points& scene, const Points& scene_normals,
                              const OrientedModel& model, const CyclicSymmetry& sym, float e_gmax, float max_angle_deg);
 
-/// The pose (4.6) of a clique of class members: each point's turn chosen so that the distances
-/// to the points before it fit best (the second point's turn tried in every way, the best
-/// least-squares fit kept), then the closed form of solvePose. ok = false when every choice
-/// is degenerate or a mirror image.
+/// The pose (4.6) of a clique of class members: three anchors (the first point at its own
+/// image, the scene point farthest from it, the one farthest from the line through both) each
+/// take one of the two images whose distances to the anchors before fit best; the closed form
+/// of those three poses each point at its image nearest the scene, and solvePose on all of them
+/// gives the fit, the least rms of the four kept. ok = false when every choice is degenerate
+/// or a mirror image.
 PoseFit solveCyclicPose(const CyclicSymmetry& sym, const Points& model, const Points& scene);
 
 }  // namespace binpose

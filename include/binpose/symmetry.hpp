@@ -16,10 +16,26 @@
 
 namespace binpose {
 
-/// The axis of a body of revolution, in the model's frame.
+class KdTree;
+
 /// Two unit vectors completing `z` (unit) to a right-handed basis (the same for the same z).
 void basisAround(const Vec3& z, Vec3& x, Vec3& y);
 
+/// The points' centroid and principal axes: the eigenvectors (unit columns) of their
+/// covariance, with its eigenvalues, ascending.
+struct PrincipalAxes {
+  Vec3 centre = Vec3::Zero();
+  Eigen::Vector3f values = Eigen::Vector3f::Zero();
+  Eigen::Matrix3f axes = Eigen::Matrix3f::Identity();
+};
+PrincipalAxes principalAxes(const Points& points);
+
+/// True when the turn by `angle` (rad) about `axis` (unit) through `centre` keeps at least
+/// 97% of the points within `tolerance` (mm) of one of them (`tree`: over the points).
+bool turnKeepsShape(const Points& points, const KdTree& tree, const Vec3& centre, const Vec3& axis, float angle,
+                    float tolerance);
+
+/// The axis of a body of revolution, in the model's frame.
 struct RevolutionAxis {
   Vec3 point = Vec3::Zero();      ///< a point of the axis (the model points' centroid), mm
   Vec3 direction = Vec3::UnitZ(); ///< unit
@@ -49,7 +65,8 @@ struct Orbits {
   std::vector<std::uint32_t> member;  ///< per orbit: its lowest model point, which stands for it
   std::vector<ProfilePoint> profile;  ///< per orbit: its points' mean (normal tilt renormalised)
   /// Classes of a discrete symmetry's images (cyclic_symmetry.hpp), not rings: votes go to
-  /// model points, and a point's candidates are its classes' members (no lists by key).
+  /// model points, and a point's candidates are its classes' members (no profile, no lists by
+  /// key).
   bool cyclic = false;
   /// An orbit's (r, z, 0): distances between orbits in the axis's half-plane.
   [[nodiscard]] Vec3 inPlane(std::uint32_t orbit) const { return {profile[orbit].r, profile[orbit].z, 0.0f}; }
