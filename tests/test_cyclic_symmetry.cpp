@@ -14,12 +14,13 @@ using namespace binpose;
 
 namespace {
 
-/// A made-up part of 5-fold symmetry about the z axis through (10, -20, 5): the 5 images of 40
-/// random oriented points. Members (one image of each) are points 0..39.
+/// A made-up part of n-fold symmetry (5 unless told) about the z axis through (10, -20, 5): the
+/// n images of 40 random oriented points. Members (one image of each) are points 0..39.
 struct FiveFold {
   CyclicSymmetry sym{RevolutionAxis{Vec3(10, -20, 5), Vec3::UnitZ()}, 5};
   OrientedModel model;
-  explicit FiveFold(std::uint64_t seed) {
+  explicit FiveFold(std::uint64_t seed, int order = 5) {
+    sym.order = order;
     std::mt19937 rng(seed);
     std::uniform_real_distribution<float> u(-1.0f, 1.0f);
     Points base, normals;
@@ -110,4 +111,94 @@ TEST(CyclicSymmetry, RightPairsAreLinkedWhateverTheirImagesAndFormTheLargestCliq
   const CliqueResult clique = maximumClique(g, 1000000);
   ASSERT_EQ(clique.vertices.size(), 15u);
   for (const int v : clique.vertices) EXPECT_EQ(v % 2, 0) << "wrong candidate of point " << v / 2 << " in the clique";
+}
+
+namespace {
+
+/// Whether cps[i] and cps[j] are linked by the graph's definition, turn by turn with posed
+/// points: 1 (some turn passes every test by `margin`), 0 (every turn fails one by `margin`) or
+/// -1 (too close to call in floating point).
+int linkedByDefinition(const Correspondence& ci, const Correspondence& cj, const Points& scene, const Points& normals,
+                       const OrientedModel& model, const CyclicSymmetry& sym, float e_gmax, float max_angle_deg,
+                       float margin) {
+  if (ci.scene == cj.scene) return 0;
+  const float tol = std::sin(max_angle_deg * float(M_PI) / 180.0f);
+  const Vec3 d = scene[cj.scene] - scene[ci.scene];
+  const float ds = d.norm();
+  const Vec3& ni = normals[ci.scene];
+  const Vec3& nj = normals[cj.scene];
+  const Vec3& a = model.points[ci.model];
+  const Vec3& ui = model.normals[ci.model];
+  bool unsure = false;
+  for (int k = 0; k < sym.order; ++k) {
+    const Pose turn = sym.turn(k);
+    const Vec3 b = turn * model.points[cj.model];
+    const Vec3 uj = turn.linear() * model.normals[cj.model];
+    const float dm = (b - a).norm();
+    const float slack = tol * ds + e_gmax;
+    // Each test's room: positive when it passes, negative when it fails.
+    const float room = std::min({dm - std::max(0.0f, ds - e_gmax), ds + e_gmax - dm,
+                                 tol - std::abs(ui.dot(uj) - ni.dot(nj)),
+                                 slack - std::abs(ui.dot(b - a) - ni.dot(d)),
+                                 slack - std::abs(uj.dot(a - b) + nj.dot(d))});
+    if (room >= margin) return 1;
+    if (room > -margin) unsure = true;
+  }
+  return unsure ? -1 : 0;
+}
+
+/// Pairs of scene points on a posed part, each at a random one of its images (noisy by 0.3 mm
+/// and about 3 degrees), and three candidates each: its member, a random member and a random
+/// point at any image.
+struct CandidateSet {
+  Points scene, normals;
+  std::vector<Correspondence> cps;
+  CandidateSet(const FiveFold& part, std::uint64_t seed) {
+    const Pose truth = somePose();
+    std::mt19937 rng(seed);
+    std::normal_distribution<float> noise(0.0f, 1.0f);
+    const auto points = static_cast<std::uint32_t>(part.model.points.size());
+    for (std::uint32_t i = 0; i < 40; ++i) {
+      const Pose image = truth * part.sym.turn(static_cast<int>(rng() % part.sym.order));
+      scene.push_back(image * part.model.points[i] + 0.3f * Vec3(noise(rng), noise(rng), noise(rng)));
+      normals.push_back(
+          (image.linear() * part.model.normals[i] + 0.05f * Vec3(noise(rng), noise(rng), noise(rng))).normalized());
+      for (const std::uint32_t m : {i, static_cast<std::uint32_t>(rng() % 40), static_cast<std::uint32_t>(rng() % points)})
+        cps.push_back({i, m});
+    }
+  }
+};
+
+}  // namespace
+
+TEST(CyclicSymmetry, GraphIsItsDefinitionTestedTurnByTurn) {
+  // 36 turns as well as 5: the graph takes the turns 32 at a time.
+  for (const int order : {5, 36}) {
+    const FiveFold part(order, static_cast<std::uint64_t>(order));
+    const CandidateSet set(part, 23);
+    const float e_gmax = 1.0f, max_angle = 10.0f;
+    const Graph g = cyclicConsistencyGraph(set.cps, set.scene, set.normals, part.model, part.sym, e_gmax, max_angle);
+    const int n = static_cast<int>(set.cps.size());
+    int linked = 0, unsure = 0, wrong = 0;
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j < n; ++j) {
+        if (i == j) continue;
+        const int truth = linkedByDefinition(set.cps[i], set.cps[j], set.scene, set.normals, part.model, part.sym,
+                                             e_gmax, max_angle, 1e-3f);
+        if (truth < 0) {
+          ++unsure;
+          continue;
+        }
+        linked += truth;
+        if (g.adjacent(i, j) != (truth == 1)) {
+          ++wrong;
+          if (wrong <= 5) ADD_FAILURE() << "order " << order << ": pair " << i << ", " << j << " linked " << g.adjacent(i, j);
+        }
+      }
+    EXPECT_EQ(wrong, 0) << "order " << order;
+    EXPECT_LT(unsure, n * n / 1000) << "order " << order;
+    // Both kinds of pair are there to get wrong: about a third of the candidates are right.
+    EXPECT_GT(linked, n * n / 20) << "order " << order;
+    EXPECT_LT(linked, n * n / 2) << "order " << order;
+  }
 }
