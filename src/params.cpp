@@ -138,11 +138,12 @@ DetectionParams fastPreset() {
   // third of min_score (params.hpp): 265 parts of the 18 bins instead of 264, the same 7 false,
   // ipd8-16's fully visible copy 1 among them; 436 poses refined instead of 403.
   p.prescreen_retry_steps = 2;
-  // Classes of a cyclic symmetry's images (params.hpp) off: on IPD obj 8 they found 6 more
-  // parts of the three 32-part bins (61 of 96 against 55) but the same more than half visible
-  // ones of the 16-part bins, and took ipd8-16 52.5 ms instead of 45.7 (warm medians of 11,
-  // two alternating runs each): its consistency graph is a scalar loop over the n turns.
-  p.use_cyclic_symmetry = false;
+  // Classes of a cyclic symmetry's images (params.hpp) on, as in the default preset, since their
+  // consistency graph runs on SIMD lanes: ipd8-16 45.5 ms against 43.0 without (warm medians of
+  // 11; 52.5 against 45.7 with the graph's scalar loop over the turns). On ten IPD obj 8 bins
+  // (bench_e2e --seed-offset 0, 1000, 2000, 3000 and 4000, one run each) they found 176 parts
+  // against 167, and missed 3 of the more than half visible ones against 5.
+  p.use_cyclic_symmetry = true;
   return p;
 }
 

@@ -81,7 +81,7 @@ struct DetectionParams {
   /// of revolution (revolution_candidates: with 12, `fast`'s graphs took 3-5x longer for the
   /// same parts). On IPD obj 8 (17 teeth) the default found 108 of 144 parts on the six ipd8
   /// bench bins (92 without), all 100 more than half visible ones (90 without), in 1.2-2.3x
-  /// the time. Off in the thesis and `fast` presets.
+  /// the time. Off in the thesis preset.
   bool use_cyclic_symmetry = true;
   bool refine = true;             ///< point-to-plane ICP of each pose against the full scan
   int icp_iterations = 20;
