@@ -6,6 +6,7 @@
 #include <cmath>
 #include <bit>
 #include <cstring>
+#include <deque>
 #include <numeric>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -21,10 +22,11 @@ class Search {
   Search(const Graph& g, std::uint64_t limit, std::size_t floor) : g_(g), limit_(limit), floor_(floor) {}
 
   CliqueResult run() {
-    Bits all(static_cast<std::size_t>(g_.words()), 0);
+    Bits& all = level(0).P;
+    all.assign(static_cast<std::size_t>(g_.words()), 0);
     for (int v = 0; v < g_.size(); ++v) all[v / 64] |= 1ull << (v % 64);
     std::vector<int> current;
-    expand(current, all);
+    expand(current, 0);
     CliqueResult r;
     r.vertices = best_;
     std::sort(r.vertices.begin(), r.vertices.end());
@@ -34,46 +36,64 @@ class Search {
   }
 
  private:
-  /// Greedy sequential colouring of P: vertices in colour order and their colour numbers; a
+  /// One depth of the search: its candidate set P and the colouring's buffers, kept from one
+  /// node to the next (no allocation per node once the depth has been reached).
+  struct Level {
+    Bits P, uncoloured, available;
+    std::vector<int> order, colours;
+  };
+
+  /// The buffers of depth d (a deque: the levels above keep their places as it grows).
+  Level& level(std::size_t d) {
+    while (levels_.size() <= d) levels_.emplace_back();
+    return levels_[d];
+  }
+
+  /// Greedy sequential colouring of L.P: vertices in colour order and their colour numbers; a
   /// clique in P has at most as many vertices as colours used up to any vertex.
-  void colour(const Bits& P, std::vector<int>& order, std::vector<int>& colours) const {
-    Bits uncoloured = P, available(P.size());
+  void colour(Level& L) const {
+    L.order.clear();
+    L.colours.clear();
+    L.uncoloured = L.P;
+    L.available.resize(L.P.size());
     int k = 0;
-    while (std::any_of(uncoloured.begin(), uncoloured.end(), [](auto w) { return w != 0; })) {
+    while (std::any_of(L.uncoloured.begin(), L.uncoloured.end(), [](auto w) { return w != 0; })) {
       ++k;
-      available = uncoloured;
-      for (std::size_t w = 0; w < available.size(); ++w)
-        while (available[w]) {
-          const int v = static_cast<int>(w * 64) + std::countr_zero(available[w]);
-          available[w] &= available[w] - 1;
-          uncoloured[w] &= ~(1ull << (v % 64));
+      L.available = L.uncoloured;
+      for (std::size_t w = 0; w < L.available.size(); ++w)
+        while (L.available[w]) {
+          const int v = static_cast<int>(w * 64) + std::countr_zero(L.available[w]);
+          L.available[w] &= L.available[w] - 1;
+          L.uncoloured[w] &= ~(1ull << (v % 64));
           const std::uint64_t* n = g_.row(v);
-          for (std::size_t x = w; x < available.size(); ++x) available[x] &= ~n[x];  // v's neighbours need another colour
-          order.push_back(v);
-          colours.push_back(k);
+          for (std::size_t x = w; x < L.available.size(); ++x) L.available[x] &= ~n[x];  // v's neighbours need another colour
+          L.order.push_back(v);
+          L.colours.push_back(k);
         }
     }
   }
 
-  void expand(std::vector<int>& R, Bits P) {
+  /// Searches the cliques R + (some of level(depth).P).
+  void expand(std::vector<int>& R, std::size_t depth) {
     if (++nodes_ > limit_) { stopped_ = true; return; }
-    std::vector<int> order, colours;
-    colour(P, order, colours);
-    for (int i = static_cast<int>(order.size()) - 1; i >= 0 && !stopped_; --i) {
-      if (R.size() + static_cast<std::size_t>(colours[i]) <= std::max(best_.size(), floor_)) return;  // bound
-      const int v = order[i];
+    Level& L = level(depth);
+    colour(L);
+    for (int i = static_cast<int>(L.order.size()) - 1; i >= 0 && !stopped_; --i) {
+      if (R.size() + static_cast<std::size_t>(L.colours[i]) <= std::max(best_.size(), floor_)) return;  // bound
+      const int v = L.order[i];
       R.push_back(v);
-      Bits next(P.size());
+      Bits& next = level(depth + 1).P;
+      next.resize(L.P.size());
       bool empty = true;
       const std::uint64_t* n = g_.row(v);
-      for (std::size_t w = 0; w < P.size(); ++w) empty &= (next[w] = P[w] & n[w]) == 0;
+      for (std::size_t w = 0; w < L.P.size(); ++w) empty &= (next[w] = L.P[w] & n[w]) == 0;
       if (empty) {
         if (R.size() > std::max(best_.size(), floor_)) best_ = R;
       } else {
-        expand(R, std::move(next));
+        expand(R, depth + 1);
       }
       R.pop_back();
-      P[v / 64] &= ~(1ull << (v % 64));
+      L.P[v / 64] &= ~(1ull << (v % 64));
     }
   }
 
@@ -82,6 +102,7 @@ class Search {
   std::size_t floor_;
   bool stopped_ = false;
   std::vector<int> best_;
+  std::deque<Level> levels_;
 };
 
 /// A clique grown greedily from each of the few highest-degree vertices (adding, in degree
