@@ -55,7 +55,6 @@ class Search {
     L.order.clear();
     L.colours.clear();
     L.uncoloured = L.P;
-    L.available.resize(L.P.size());
     int k = 0;
     while (std::any_of(L.uncoloured.begin(), L.uncoloured.end(), [](auto w) { return w != 0; })) {
       ++k;
