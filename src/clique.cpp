@@ -199,6 +199,29 @@ void transpose64(std::array<std::uint64_t, 64>& a) {
     }
 }
 
+/// The subgraph of the vertices `order` (a symmetric graph's), vertex a of it being order[a]:
+/// P g P^T for the permutation P that picks them. X = P g picks rows; X^T = g P^T (g is
+/// symmetric) is one bit transpose, 64 x 64 blocks at a time; P X^T picks its rows again. A
+/// scatter of each edge's bit to its new place cost as much as building the graph (ipd0-32).
+Graph relabelled(const Graph& g, const std::vector<int>& order) {
+  const int m = static_cast<int>(order.size());
+  Graph sorted(m);
+  const int xw = g.words(), yw = sorted.words();  // words of a row of X (g's columns), of X^T (m columns)
+  std::vector<std::uint64_t> xt(static_cast<std::size_t>(xw) * 64 * yw, 0);  // X^T, g's columns rounded up to 64
+  std::array<std::uint64_t, 64> block;
+  for (int I = 0; I < yw; ++I)    // X's rows 64 I ..
+    for (int J = 0; J < xw; ++J) {  // .. and columns 64 J ..
+      std::uint64_t any = 0;
+      for (int r = 0; r < 64; ++r) any |= block[r] = 64 * I + r < m ? g.row(order[64 * I + r])[J] : 0;
+      if (any == 0) continue;
+      transpose64(block);  // block[c] bit r: X's row 64 I + r, column 64 J + c
+      for (int c = 0; c < 64; ++c) xt[static_cast<std::size_t>(64 * J + c) * yw + I] = block[c];
+    }
+  for (int a = 0; a < m; ++a)
+    std::copy_n(xt.begin() + static_cast<std::ptrdiff_t>(order[a]) * yw, yw, sorted.mutableRow(a));
+  return sorted;
+}
+
 }  // namespace
 
 int Graph::degree(int v) const {
@@ -237,21 +260,7 @@ CliqueResult maximumClique(const Graph& g, std::uint64_t work_limit) {
   CliqueResult r;
   r.vertices = greedy;
   if (order.size() > greedy.size()) {
-    const int m = static_cast<int>(order.size());
-    std::vector<int> position(static_cast<std::size_t>(n), -1);
-    for (int a = 0; a < m; ++a) position[order[a]] = a;
-    Bits core(static_cast<std::size_t>(g.words()), 0);
-    for (const int v : order) core[v / 64] |= 1ull << (v % 64);
-    Graph sorted(m);
-    for (int a = 0; a < m; ++a) {  // each row's bits within the core moved to their new places
-      std::uint64_t* to = sorted.mutableRow(a);
-      const std::uint64_t* from = g.row(order[a]);
-      for (int w = 0; w < g.words(); ++w)
-        for (std::uint64_t bits = from[w] & core[w]; bits; bits &= bits - 1) {
-          const int b = position[w * 64 + std::countr_zero(bits)];
-          to[b / 64] |= 1ull << (b % 64);
-        }
-    }
+    const Graph sorted = relabelled(g, order);
     CliqueResult found = Search(sorted, work_limit, greedy.size()).run();
     r.exact = found.exact;
     r.nodes = found.nodes;
