@@ -242,6 +242,20 @@ void Graph::isolate(std::span<const int> vertices) {
   }
 }
 
+void Graph::mirrorUpper() {
+  tbb::parallel_for(0, words_, [&](int J) {  // block J's rows: words 0..J-1 from blocks (I, J) above, then word J
+    std::array<std::uint64_t, 64> a;
+    for (int I = 0; I < J; ++I) {
+      for (int r = 0; r < 64; ++r) a[r] = I * 64 + r < n_ ? row(I * 64 + r)[J] : 0;
+      transpose64(a);
+      for (int r = 0; r < 64 && J * 64 + r < n_; ++r) mutableRow(J * 64 + r)[I] = a[r];
+    }
+    for (int r = 0; r < 64; ++r) a[r] = J * 64 + r < n_ ? row(J * 64 + r)[J] : 0;
+    transpose64(a);
+    for (int r = 0; r < 64 && J * 64 + r < n_; ++r) mutableRow(J * 64 + r)[J] |= a[r];
+  });
+}
+
 CliqueResult maximumClique(const Graph& g, std::uint64_t work_limit) {
   if (g.size() == 0) return {};
   const int n = g.size();
@@ -311,15 +325,7 @@ Graph consistencyGraph(std::span<const Correspondence> cps, const Points& scene,
       }
     }
   });
-  const int blocks = g.words();
-  tbb::parallel_for(1, blocks, [&](int J) {  // block J's rows, words 0..J-1, from blocks (I, J) above
-    std::array<std::uint64_t, 64> a;
-    for (int I = 0; I < J; ++I) {
-      for (int r = 0; r < 64; ++r) a[r] = I * 64 + r < n ? g.row(I * 64 + r)[J] : 0;
-      transpose64(a);
-      for (int r = 0; r < 64 && J * 64 + r < n; ++r) g.mutableRow(J * 64 + r)[I] = a[r];
-    }
-  });
+  g.mirrorUpper();
   return g;
 }
 

@@ -231,7 +231,7 @@ Graph cyclicConsistencyGraph(std::span<const Correspondence> cps, const Points& 
     return Turned{a.x() * b.x() + a.y() * b.y(), a.x() * b.y() - a.y() * b.x(), a.z() * b.z()};
   };
   const float tol = std::sin(max_angle_deg * float(M_PI) / 180.0f);
-  // Row i's partners j > i into row i alone (rows apart on the cores), mirrored below after:
+  // Row i's partners j > i into row i alone (rows apart on the cores), mirrored after (mirrorUpper):
   // screened, then the turns of the right distance found, both on SIMD lanes; the three angles
   // are tested only at those turns (1.8 a pair on average of IPD obj 8's 17, where any).
   tbb::parallel_for(tbb::blocked_range<int>(0, n, 16), [&](const tbb::blocked_range<int>& rows) {
@@ -268,14 +268,7 @@ Graph cyclicConsistencyGraph(std::span<const Correspondence> cps, const Points& 
       }
     }
   });
-  for (int i = 0; i < n; ++i) {
-    const std::uint64_t* row = g.row(i);
-    for (int w = i / 64; w < g.words(); ++w)
-      for (std::uint64_t bits = row[w]; bits; bits &= bits - 1) {
-        const int j = w * 64 + std::countr_zero(bits);
-        if (j > i) g.mutableRow(j)[i / 64] |= 1ull << (i % 64);
-      }
-  }
+  g.mirrorUpper();
   return g;
 }
 

@@ -27,6 +27,11 @@ class Graph {
   [[nodiscard]] int degree(int v) const;
   /// Removes every edge of the listed vertices (they stay, alone).
   void isolate(std::span<const int> vertices);
+  /// Makes the graph symmetric from its edges (i, j), j > i: each row's words below its
+  /// diagonal word are set from the 64 x 64 blocks above (bit-transposed), and each diagonal
+  /// block takes its transpose's bits too. For graph builders that fill each row from its
+  /// diagonal word on.
+  void mirrorUpper();
 
  private:
   int n_, words_;
