@@ -239,12 +239,6 @@ __attribute__((target("avx2"))) void transpose64Avx2(std::array<std::uint64_t, 6
 }
 #endif
 
-void transpose64(std::array<std::uint64_t, 64>& a) {
-#if defined(__x86_64__)
-  if (detail::haveAvx2()) return transpose64Avx2(a);
-#endif
-  transpose64Scalar(a);
-}
 
 /// The subgraph of the vertices `order` (a symmetric graph's), vertex a of it being order[a]:
 /// P g P^T for the permutation P that picks them. X = P g picks rows; X^T = g P^T (g is
@@ -261,7 +255,7 @@ Graph relabelled(const Graph& g, const std::vector<int>& order) {
       std::uint64_t any = 0;
       for (int r = 0; r < 64; ++r) any |= block[r] = 64 * I + r < m ? g.row(order[64 * I + r])[J] : 0;
       if (any == 0) continue;
-      transpose64(block);  // block[c] bit r: X's row 64 I + r, column 64 J + c
+      transposeBits64(block);  // block[c] bit r: X's row 64 I + r, column 64 J + c
       for (int c = 0; c < 64; ++c) xt[static_cast<std::size_t>(64 * J + c) * yw + I] = block[c];
     }
   for (int a = 0; a < m; ++a)
@@ -270,6 +264,13 @@ Graph relabelled(const Graph& g, const std::vector<int>& order) {
 }
 
 }  // namespace
+
+void transposeBits64(std::array<std::uint64_t, 64>& a, bool simd) {
+#if defined(__x86_64__)
+  if (simd && detail::haveAvx2()) return transpose64Avx2(a);
+#endif
+  transpose64Scalar(a);
+}
 
 int Graph::degree(int v) const {
   int d = 0;
@@ -294,11 +295,11 @@ void Graph::mirrorUpper() {
     std::array<std::uint64_t, 64> a;
     for (int I = 0; I < J; ++I) {
       for (int r = 0; r < 64; ++r) a[r] = I * 64 + r < n_ ? row(I * 64 + r)[J] : 0;
-      transpose64(a);
+      transposeBits64(a);
       for (int r = 0; r < 64 && J * 64 + r < n_; ++r) mutableRow(J * 64 + r)[I] = a[r];
     }
     for (int r = 0; r < 64; ++r) a[r] = J * 64 + r < n_ ? row(J * 64 + r)[J] : 0;
-    transpose64(a);
+    transposeBits64(a);
     for (int r = 0; r < 64 && J * 64 + r < n_; ++r) mutableRow(J * 64 + r)[J] |= a[r];
   });
 }

@@ -113,6 +113,21 @@ TEST(Clique, MatchesBruteForceOnRandomGraphs) {
   }
 }
 
+TEST(Clique, BitBlockTransposeOnRegistersAndScalarMatchesItsDefinition) {
+  Rng rng(12);
+  for (int trial = 0; trial < 50; ++trial) {
+    std::array<std::uint64_t, 64> a;
+    for (auto& w : a) w = trial % 5 == 0 ? rng.next() & rng.next() & rng.next() : rng.next();  // sparse blocks too
+    for (const bool simd : {true, false}) {
+      std::array<std::uint64_t, 64> t = a;
+      transposeBits64(t, simd);
+      for (int r = 0; r < 64; ++r)
+        for (int c = 0; c < 64; ++c)
+          ASSERT_EQ((t[c] >> r) & 1u, (a[r] >> c) & 1u) << "trial " << trial << " simd " << simd << " row " << r << " column " << c;
+    }
+  }
+}
+
 TEST(Clique, ThirtyVerticesAndAPlantedClique) {
   Rng rng(6);
   for (int trial = 0; trial < 8; ++trial) {

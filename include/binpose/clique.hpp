@@ -3,6 +3,7 @@
 // with greedy-colouring bounds (Tomita & Seki 2003; San Segundo et al. 2011), with a work bound.
 #include <binpose/voting.hpp>
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -43,6 +44,12 @@ struct CliqueResult {
   bool exact = true;          ///< false when the work bound stopped the search early
   std::uint64_t nodes = 0;    ///< branch-and-bound nodes expanded
 };
+
+/// Transposes a 64 x 64 bit block in place (bit c of a[r] <-> bit r of a[c]): on AVX2
+/// registers where the CPU has them and `simd` is set, else by scalar swaps (Warren, Hacker's
+/// Delight 7-3); the same bits either way. The graphs' mirror and the clique search's
+/// relabelling work in such blocks.
+void transposeBits64(std::array<std::uint64_t, 64>& a, bool simd = true);
 
 /// Geometric consistency graph (eq. 13-16): CP_i and CP_j are linked when the model and scene
 /// distances between them differ by less than e_gmax.
