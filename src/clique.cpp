@@ -9,7 +9,6 @@
 #include <bit>
 #include <cstring>
 #include <deque>
-#include <numeric>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -202,10 +201,6 @@ void transpose64Scalar(std::array<std::uint64_t, 64>& a) {
 }
 
 #if defined(__x86_64__)
-/// The same swaps, four rows to a 256-bit register, all 64 rows in 16 registers: the swaps of
-/// rows 4 and more apart pair whole registers, those of rows 2 and 1 apart pair lanes of one
-/// (a lane permute, then a blend). The scalar loop kept its rows in memory, each swap waiting on
-/// the store before it: perf put its xor and stores at 57% of maximumClique's own time.
 /// Rows k and k + j of the 16 registers swapped in their j x j sub-blocks (j = 32, 16, 8, 4).
 BINPOSE_AVX2_INLINE void swapRegisters(__m256i (&v)[16], int j, std::uint64_t mask) {
   const __m256i m = _mm256_set1_epi64x(static_cast<long long>(mask));
@@ -219,6 +214,10 @@ BINPOSE_AVX2_INLINE void swapRegisters(__m256i (&v)[16], int j, std::uint64_t ma
   }
 }
 
+/// The same swaps, four rows to a 256-bit register, all 64 rows in 16 registers: the swaps of
+/// rows 4 and more apart pair whole registers, those of rows 2 and 1 apart pair lanes of one
+/// (a lane permute, then a blend). The scalar loop kept its rows in memory, each swap waiting on
+/// the store before it: perf put its xor and stores at 57% of maximumClique's own time.
 __attribute__((target("avx2"))) void transpose64Avx2(std::array<std::uint64_t, 64>& a) {
   __m256i v[16];
   for (int q = 0; q < 16; ++q) v[q] = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(a.data() + 4 * q));
@@ -238,7 +237,6 @@ __attribute__((target("avx2"))) void transpose64Avx2(std::array<std::uint64_t, 6
   for (int q = 0; q < 16; ++q) _mm256_storeu_si256(reinterpret_cast<__m256i*>(a.data() + 4 * q), v[q]);
 }
 #endif
-
 
 /// The subgraph of the vertices `order` (a symmetric graph's), vertex a of it being order[a]:
 /// P g P^T for the permutation P that picks them. X = P g picks rows; X^T = g P^T (g is
