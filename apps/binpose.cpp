@@ -203,6 +203,8 @@ std::string resultJson(const binpose::DetectionResult& r, const binpose::Detecti
   j["sampled_points"] = r.sampled_points;
   j["plane_points"] = r.plane_points;
   j["subgroups"] = r.subgroups;
+  j["subgroups_run"] = r.subgroups_run;
+  j["subgroups_retried"] = r.subgroups_retried;
   j["hypotheses"] = r.hypotheses;
   j["refined"] = r.refined;
   j["params"] = nlohmann::json::parse(binpose::toJson(p));

@@ -12,6 +12,7 @@
 #include <chrono>
 #include <functional>
 #include <memory>
+#include <numeric>
 #include <optional>
 #include <tbb/blocked_range.h>
 #include <tbb/global_control.h>
@@ -39,16 +40,16 @@ PreparedScene withoutPlanes(PreparedScene scene, const DetectionParams& p, std::
   return kept;
 }
 
-/// Appends the voters (may_vote) among the points of `group` not yet removed, when there are at
-/// least `min_size` such points (fewer: the sub-group will not run).
+/// Appends the voters (may_vote, or all with `all_voters`) among the points of `group` not yet
+/// removed, when there are at least `min_size` such points (fewer: the sub-group will not run).
 void appendLiveVoters(std::span<const std::uint32_t> group, const std::vector<char>& removed, const std::vector<char>& may_vote,
-                      std::size_t min_size, std::vector<std::uint32_t>& voters) {
+                      bool all_voters, std::size_t min_size, std::vector<std::uint32_t>& voters) {
   const std::size_t mark = voters.size();
   std::size_t live = 0;
   for (const auto i : group) {
     if (removed[i]) continue;
     ++live;
-    if (may_vote[i]) voters.push_back(i);
+    if (all_voters || may_vote[i]) voters.push_back(i);
   }
   if (live < min_size) voters.resize(mark);
 }
@@ -62,7 +63,10 @@ struct GroupOutcome {
   std::vector<Pose> poses;                 ///< the clique's closed-form pose, then its alternatives
                                            ///< (a body of revolution's other axis sign)
   bool screened_out = false;               ///< the pose failed the pre-screen
+  bool all_voters = false;                 ///< every member's candidates taken, not only the voters'
+  int largest_clique = 0;                  ///< size of the first clique searched (0: none searched)
   Hypothesis hypothesis;                   ///< refined and scored (when the clique gave a pose that passed)
+  float score_without_grazing = 0;         ///< the hypothesis's (Evidence::scoreWithoutGrazing)
   double vote_ms = 0, match_ms = 0, refine_ms = 0;  ///< the thread's time in each stage
 };
 
@@ -92,6 +96,7 @@ struct Matcher {
   const PointGrid& scan_grid;
   const SceneEvidence& evidence;
   const NeighbourhoodVoter* local;  ///< the local votes (null: each sub-group votes, 4.3)
+  const std::vector<char>& may_vote;  ///< with local votes, the points of voter_spacing
   const Orbits* orbits;             ///< a body of revolution's (null: matched point to point)
   const CyclicSymmetry* cyclic;     ///< a part of n-fold symmetry's (candidates: class members)
   /// True when a pose is another of an object already found (explain_score), or close to a
@@ -103,15 +108,20 @@ struct Matcher {
   /// seen() is not verified: it stays so when taken. The pose, ICP and score depend on the clique's
   /// pairs alone: when `earlier` (a run of the same sub-group with more points) found the same
   /// clique, its verdict is taken instead of verifying again. `parallel`: votes with it instead
-  /// of the slot's voter, on all cores (a sub-group run again on its own).
-  void run(std::span<const std::uint32_t> group, const std::vector<char>& removed, Slot& s,
+  /// of the slot's voter, on all cores (a sub-group run again on its own). `all_voters`: with
+  /// local votes, the candidates of every member (which must all have voted), not only of the
+  /// voters of voter_spacing.
+  void run(std::span<const std::uint32_t> group, const std::vector<char>& removed, Slot& s, bool all_voters,
            const GroupOutcome* earlier = nullptr, ParallelVoter* parallel = nullptr) const {
     GroupOutcome& out = s.outcome;
     out.members.clear();
     out.clique.clear();
     out.poses.clear();
     out.ran = out.screened_out = false;
+    out.all_voters = all_voters;
+    out.largest_clique = 0;
     out.hypothesis = {};
+    out.score_without_grazing = 0;
     out.vote_ms = out.match_ms = out.refine_ms = 0;
     for (const auto i : group)
       if (!removed[i]) out.members.push_back(i);
@@ -120,8 +130,13 @@ struct Matcher {
     const auto t_vote = Clock::now();
     s.candidates.clear();
     if (local) {
+      // The second pass (retry_all_voters): nothing new when the other points have no candidate.
+      if (all_voters && std::none_of(out.members.begin(), out.members.end(),
+                                     [&](std::uint32_t i) { return may_vote[i] == 0 && !local->candidates(i).empty(); }))
+        return;
       for (const auto i : out.members)
-        for (const auto m : local->candidates(i)) s.candidates.push_back({i, m});
+        if (all_voters || may_vote[i] != 0)  // the others' votes, if any, are for the second pass
+          for (const auto m : local->candidates(i)) s.candidates.push_back({i, m});
     } else if (parallel != nullptr) {
       parallel->vote(scene.points, scene.normals, out.members, s.candidates);  // the same pairs
     } else {
@@ -139,6 +154,7 @@ struct Matcher {
     if (earlier != nullptr && earlier->clique == out.clique) {
       out.screened_out = earlier->screened_out;
       out.hypothesis = earlier->hypothesis;
+      out.score_without_grazing = earlier->score_without_grazing;
       return;
     }
     verify(s);
@@ -160,6 +176,7 @@ struct Matcher {
                       : consistencyGraph(s.candidates, scene.points, model, p.e_gmax);
     for (int retry = 0;; ++retry) {
       const CliqueResult clique = maximumClique(graph, p.clique_work_limit);
+      if (retry == 0) s.outcome.largest_clique = static_cast<int>(clique.vertices.size());
       if (clique.vertices.size() < static_cast<std::size_t>(p.C_n)) return false;
       if (fitClique(s, clique)) return true;
       // A mirror image (or a degenerate set): the next largest clique without its pairs.
@@ -202,8 +219,13 @@ struct Matcher {
   void verify(Slot& s) const {
     Hypothesis& h = s.outcome.hypothesis;
     Detection& det = h.detection;
+    // A pose of the second pass (retry_all_voters) is screened as it will be judged: by its score
+    // without grazing points, against retry_min_score.
+    const bool second_pass = s.outcome.all_voters;
+    const float gate = second_pass ? std::max(p.min_score, p.retry_min_score) : p.min_score;
     auto prescore = [&](const Pose& pose) {
-      return evidence.evaluate(pose, icp_model.points, icp_model.normals, p.icp_max_distance, 0.0f).score();
+      const Evidence e = evidence.evaluate(pose, icp_model.points, icp_model.normals, p.icp_max_distance, 0.0f);
+      return second_pass ? e.scoreWithoutGrazing() : e.score();
     };
     if (p.verify) {  // the scan decides between a clique's poses, and screens out one far from it
       const auto alternatives = std::span<const Pose>(s.outcome.poses).subspan(1);
@@ -213,17 +235,17 @@ struct Matcher {
           best = score;
           det.pose = other;
         }
-      if (p.prescreen && best < p.min_score) {
-        if (p.prescreen_retry_steps > 0 && best >= p.prescreen_retry_share * p.min_score) {
+      if (p.prescreen && best < gate) {
+        if (p.prescreen_retry_steps > 0 && best >= p.prescreen_retry_share * gate) {
           // Near the scan but a few mm off: a few coarse ICP steps, and another look.
           const IcpParams nudge{p.prescreen_retry_steps, p.icp_max_distance, p.verify_tolerance, p.viewpoint};
           const Pose moved = refinePose(det.pose, icp_model.points, icp_model.normals, scan.points, scan_grid, nudge);
-          if (const float score = prescore(moved); score >= p.min_score) {
+          if (const float score = prescore(moved); score >= gate) {
             best = score;
             det.pose = moved;
           }
         }
-        if (best < p.min_score) {
+        if (best < gate) {
           s.outcome.screened_out = true;  // far from the scan even at the ICP gate: not worth refining
           return;
         }
@@ -233,8 +255,10 @@ struct Matcher {
       const IcpParams icp{p.icp_iterations, p.icp_max_distance, p.verify_tolerance, p.viewpoint};
       det.pose = refinePose(det.pose, icp_model.points, icp_model.normals, scan.points, scan_grid, icp);
     }
-    det.score = evidence.evaluate(det.pose, db.model().points, db.model().normals, p.verify_tolerance,
-                                  db.model().sample_radius, &h.support).score();
+    const Evidence e = evidence.evaluate(det.pose, db.model().points, db.model().normals, p.verify_tolerance,
+                                         db.model().sample_radius, &h.support);
+    det.score = e.score();
+    s.outcome.score_without_grazing = e.scoreWithoutGrazing();
     std::sort(h.support.begin(), h.support.end());
     h.support.erase(std::unique(h.support.begin(), h.support.end()), h.support.end());
   }
@@ -345,7 +369,10 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   std::vector<Plane> planes;  // the bin's
   std::optional<SceneEvidence> evidence_slot;
   tbb::parallel_invoke([&] { if (p.remove_planes) scene = withoutPlanes(std::move(scene), p, planes); },
-                       [&] { evidence_slot.emplace(scan.points, scan_grid, p.viewpoint); });
+                       [&] {
+                         evidence_slot.emplace(scan.points, scan_grid, p.viewpoint);
+                         evidence_slot->setGrazingAngle(p.grazing_angle);
+                       });
   evidence_slot->setBackground(std::move(planes), std::min(p.verify_tolerance, p.plane_tolerance));
   result.plane_points = result.sampled_points - scene.points.size();
   std::vector<std::vector<std::uint32_t>> groups;
@@ -380,7 +407,7 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
     return std::any_of(found.begin(), found.end(), [&](const Pose& f) { return samePose(pose, f); }) ||
            std::any_of(tried.begin(), tried.end(), [&](const Pose& t) { return samePose(pose, t, p.tried_share); });
   };
-  const Matcher matcher{db_, p, icp_model_, scene, scan, scan_grid, evidence, local.get(), orbits(), cyclicSymmetry(), seen};
+  const Matcher matcher{db_, p, icp_model_, scene, scan, scan_grid, evidence, local.get(), may_vote, orbits(), cyclicSymmetry(), seen};
   std::vector<char> removed(scene.points.size(), 0);
   std::vector<Hypothesis> hypotheses;
   int confident = 0;  // detections that removed their points
@@ -399,6 +426,7 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
     ++result.refined;
     const Detection det = o.hypothesis.detection;
     if (p.verify && det.score < p.min_score) return;
+    if (p.verify && o.all_voters && o.score_without_grazing < p.retry_min_score) return;  // see retry_min_score
     const bool remove = det.score >= p.removal_score;
     if (remove || det.score >= p.explain_score) found.push_back(det.pose);
     if (remove) {  // 5.2.6, eq. 39: the scene points within sigma_dist of the posed model are removed
@@ -432,38 +460,66 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
                          votingOrbits());  // for those run again
   std::vector<std::uint32_t> voters;
   double work_ms = 0, group_vote_ms = 0, group_match_ms = 0, group_refine_ms = 0;  // see below
-  const auto t_match = Clock::now();
-  for (std::size_t next = 0; next < groups.size() && !enough; next += batch) {
-    const std::size_t end = std::min(groups.size(), next + batch);
-    if (local) {  // the batch's voters that have not voted yet vote first, all together
-      const auto t_vote = Clock::now();
-      voters.clear();
-      for (std::size_t g = next; g < end; ++g)
-        appendLiveVoters(groups[g], removed, may_vote, static_cast<std::size_t>(p.C_n), voters);
-      local->vote(voters);
-      vote_ms += msSince(t_vote);
-    }
-    const auto t_work = Clock::now();
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(next, end, 1), [&](const tbb::blocked_range<std::size_t>& range) {
-      // Isolated: a thread waiting inside a nested loop (graph, ICP) takes up no other sub-group
-      // meanwhile, which would hold up its own.
-      for (std::size_t g = range.begin(); g < range.end(); ++g)
-        tbb::this_task_arena::isolate([&] { matcher.run(groups[g], removed, slots[g - next]); });
-    }, tbb::simple_partitioner());
-    work_ms += msSince(t_work);
-    for (std::size_t g = next; g < end && !enough; ++g) {
-      Slot& slot = slots[g - next];
-      if (std::any_of(slot.outcome.members.begin(), slot.outcome.members.end(), [&](std::uint32_t i) { return removed[i] != 0; })) {
-        const auto t_again = Clock::now();
-        std::swap(earlier, slot.outcome);
-        matcher.run(groups[g], removed, slot, &earlier, &parallel);
-        work_ms += msSince(t_again);
+  std::vector<char> no_clique(groups.size(), 0);  // ran, and gave no clique (for the second pass)
+  std::vector<int> largest_clique(groups.size(), 0);  // ... and the size of the largest one searched
+  // The sub-groups of `order`, a batch at a time (see above).
+  auto runGroups = [&](const std::vector<std::uint32_t>& order, bool all_voters) {
+    for (std::size_t next = 0; next < order.size() && !enough; next += batch) {
+      const std::size_t end = std::min(order.size(), next + batch);
+      if (local) {  // the batch's voters that have not voted yet vote first, all together
+        const auto t_vote = Clock::now();
+        voters.clear();
+        for (std::size_t g = next; g < end; ++g)
+          appendLiveVoters(groups[order[g]], removed, may_vote, all_voters, static_cast<std::size_t>(p.C_n), voters);
+        local->vote(voters);
+        vote_ms += msSince(t_vote);
       }
-      group_vote_ms += slot.outcome.vote_ms;
-      group_match_ms += slot.outcome.match_ms;
-      group_refine_ms += slot.outcome.refine_ms;
-      take(slot.outcome);
+      const auto t_work = Clock::now();
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(next, end, 1), [&](const tbb::blocked_range<std::size_t>& range) {
+        // Isolated: a thread waiting inside a nested loop (graph, ICP) takes up no other sub-group
+        // meanwhile, which would hold up its own.
+        for (std::size_t g = range.begin(); g < range.end(); ++g)
+          tbb::this_task_arena::isolate([&] { matcher.run(groups[order[g]], removed, slots[g - next], all_voters); });
+      }, tbb::simple_partitioner());
+      work_ms += msSince(t_work);
+      for (std::size_t g = next; g < end && !enough; ++g) {
+        Slot& slot = slots[g - next];
+        if (std::any_of(slot.outcome.members.begin(), slot.outcome.members.end(), [&](std::uint32_t i) { return removed[i] != 0; })) {
+          const auto t_again = Clock::now();
+          std::swap(earlier, slot.outcome);
+          matcher.run(groups[order[g]], removed, slot, all_voters, &earlier, &parallel);
+          work_ms += msSince(t_again);
+        }
+        group_vote_ms += slot.outcome.vote_ms;
+        group_match_ms += slot.outcome.match_ms;
+        group_refine_ms += slot.outcome.refine_ms;
+        if (!all_voters) {
+          no_clique[order[g]] = slot.outcome.ran && slot.outcome.clique.empty();
+          largest_clique[order[g]] = slot.outcome.largest_clique;
+        }
+        take(slot.outcome);
+      }
     }
+  };
+  const auto t_match = Clock::now();
+  std::vector<std::uint32_t> order(groups.size());
+  std::iota(order.begin(), order.end(), 0u);
+  runGroups(order, false);
+  if (p.retry_all_voters && local && p.voter_spacing > 0) {
+    // Second pass: the sub-groups whose largest clique came close to C_n (retry_min_clique) and
+    // that still have C_n points, with every point voting (most of the scene is removed by now:
+    // few sub-groups, few new voters). One that reached C_n but gave no pose (a mirror image
+    // refused) is not run again: on ipd0-16 those were a quarter of the retried sub-groups,
+    // and found nothing.
+    order.clear();
+    const auto live = [&](std::uint32_t g) {
+      return std::count_if(groups[g].begin(), groups[g].end(), [&](std::uint32_t i) { return removed[i] == 0; });
+    };
+    for (std::uint32_t g = 0; g < groups.size(); ++g)
+      if (no_clique[g] && largest_clique[g] >= p.retry_min_clique && largest_clique[g] < p.C_n && live(g) >= p.C_n)
+        order.push_back(g);
+    result.subgroups_retried = order.size();
+    runGroups(order, true);
   }
   const double group_ms = group_vote_ms + group_match_ms + group_refine_ms;
   const double to_wall = group_ms > 0 ? work_ms / group_ms : 0.0;

@@ -257,14 +257,16 @@ long SceneEvidence::cell(const Vec3& p, float& range) const {
 Evidence SceneEvidence::evaluate(const Pose& pose, const Points& model_points, const Points& model_normals,
                                  float tolerance, float model_spacing, std::vector<std::uint32_t>* support) const {
   // Sensor-facing points of the posed model, with their range and direction in the image frame.
-  struct Facing { Vec3 p; float range, u, v; };
+  struct Facing { Vec3 p; float range, u, v; bool grazing; };
   std::vector<Facing> facing;
   for (std::size_t i = 0; i < model_points.size(); ++i) {
     const Vec3 p = pose * model_points[i];
-    if (!facesSensor(p, pose.linear() * model_normals[i], viewpoint_)) continue;
+    const Vec3 n = pose.linear() * model_normals[i];
+    if (!facesSensor(p, n, viewpoint_)) continue;
     const Vec3 q = to_view_ * (p - viewpoint_);
     if (q.z() <= 0) continue;
-    facing.push_back({p, q.norm(), q.x() / q.z(), q.y() / q.z()});
+    const float range = q.norm();  // the normal is of unit length: its dot is the incidence's cosine times range
+    facing.push_back({p, range, q.x() / q.z(), q.y() / q.z(), n.dot(viewpoint_ - p) < cos_grazing_ * range});
   }
   // The model's own z-buffer on cells of two sample spacings: a facing point with the model's
   // surface clearly in front of it is hidden by the part itself and is not expected in the scan.
@@ -310,6 +312,11 @@ Evidence SceneEvidence::evaluate(const Pose& pose, const Points& model_points, c
     ++e.facing;
     e.supported += verdict[i] == kSupported;
     e.contradicted += verdict[i] == kContradicted;
+    if (facing[i].grazing) {
+      ++e.grazing;
+      e.grazing_supported += verdict[i] == kSupported;
+      e.grazing_contradicted += verdict[i] == kContradicted;
+    }
     if (support && verdict[i] == kSupported) support->push_back(nearest[i]);
   }
   return e;

@@ -9,6 +9,7 @@
 #include "synthetic.hpp"
 
 #include <fstream>
+#include <string>
 
 #include <tbb/global_control.h>
 #include "test_util.hpp"
@@ -189,7 +190,7 @@ TEST(Detector, SameResultWhateverTheThreadCount) {
 // Sub-groups run side by side in batches whose size follows the thread count; a sub-group
 // that a detection of its batch took points from runs again. A simulated bin of sixteen caps
 // makes that happen and change what those sub-groups find: the counts and poses must still be
-// those of one thread.
+// those of one thread, `fast`'s second pass (retry_all_voters) included.
 namespace {
 
 /// A simulated bin of sixteen built-in caps (seed 7) and the cap's database.
@@ -222,6 +223,10 @@ TEST(Detector, BinGivesTheSameResultWhateverTheThreadCount) {
     }
     const DetectionResult many = detector.detect(scan);
     EXPECT_EQ(one.subgroups_run, many.subgroups_run) << preset;
+    EXPECT_EQ(one.subgroups_retried, many.subgroups_retried) << preset;
+    if (std::string(preset) == "fast") {
+      EXPECT_GT(one.subgroups_retried, 0u) << "the second pass must run here";
+    }
     EXPECT_EQ(one.hypotheses, many.hypotheses) << preset;
     EXPECT_EQ(one.refined, many.refined) << preset;
     ASSERT_EQ(one.detections.size(), many.detections.size()) << preset;
@@ -304,6 +309,19 @@ TEST(Detector, PoseJustShortOfThePrescreenIsRetried) {
   params.mirror_retries = 0;
   const DetectionResult result = Detector(b.db, scaledToModel(params, b.db.model().diameter)).detect(b.bin.cloud);
   EXPECT_TRUE(checkDetections(result, b.truth, b.eval, 1)) << "copy 1 missed; " << result.detections.size() << " detections";
+}
+
+// The same bin. Copy 5 (77% visible) lies flat, hub up, seen mostly by its flat faces: with
+// half the points voting (voter_spacing) its sub-groups' cliques stay under C_n (6), and `fast`
+// missed it. It is found in the second pass (retry_all_voters), every point of a sub-group whose
+// largest clique was 3 voting; its right pose scores 0.37, as the scan lacks its side walls,
+// seen nearly edge-on, and 0.54 without them (retry_min_score).
+TEST(Detector, FlatGearIsFoundWhenEveryPointVotes) {
+  REQUIRE_DATA("ipd_parts/models/obj_000008.ply");
+  const Ipd8Bin16 b;
+  const DetectionResult result = Detector(b.db, scaledToModel(fastPreset(), b.db.model().diameter)).detect(b.bin.cloud);
+  EXPECT_GT(result.subgroups_retried, 0u);
+  EXPECT_TRUE(checkDetections(result, b.truth, b.eval, 5)) << "copy 5 missed; " << result.detections.size() << " detections";
 }
 
 // The same bin with the default preset. IPD obj 8 is a ring of 17 teeth: copies 0, 1, 2 and 7
@@ -463,5 +481,30 @@ TEST(Params, PrescreenRetryIsReadAndAbsurdValuesAreRejected) {
   EXPECT_THROW(validate(bad), Error);
   bad = p;
   bad.prescreen_retry_share = NAN;
+  EXPECT_THROW(validate(bad), Error);
+}
+
+TEST(Params, SecondPassIsReadAndAbsurdValuesAreRejected) {
+  DetectionParams p = defaultPreset();
+  EXPECT_FALSE(p.retry_all_voters);
+  EXPECT_TRUE(fastPreset().retry_all_voters);
+  applyJson(p, R"({"retry_all_voters": true, "retry_min_clique": 4, "retry_min_score": 0.5, "grazing_angle": 75})", "test");
+  EXPECT_TRUE(p.retry_all_voters);
+  EXPECT_EQ(p.retry_min_clique, 4);
+  EXPECT_FLOAT_EQ(p.retry_min_score, 0.5f);
+  EXPECT_FLOAT_EQ(p.grazing_angle, 75.0f);
+  EXPECT_NO_THROW(validate(p));
+  for (const float angle : {0.0f, -10.0f, 95.0f, NAN}) {
+    DetectionParams bad = p;
+    bad.grazing_angle = angle;
+    EXPECT_THROW(validate(bad), Error) << angle;
+  }
+  for (const float score : {-0.1f, 1.5f, NAN}) {
+    DetectionParams bad = p;
+    bad.retry_min_score = score;
+    EXPECT_THROW(validate(bad), Error) << score;
+  }
+  DetectionParams bad = p;
+  bad.retry_min_clique = -1;
   EXPECT_THROW(validate(bad), Error);
 }

@@ -86,5 +86,44 @@ TEST(Evidence, TheBinsPlanesDoNotSupportAPart) {
   EXPECT_GT(score({Plane{Vec3::UnitX(), 300.0f}}), 0.8f);
 }
 
+// A box standing beside the line of sight, as a sensor sees it: its near face only, and the
+// floor far behind where the box does not hide it. Two of its side faces face the sensor, but
+// at 82-84 degrees, nearly edge-on: a sensor drops such surface, so that they are neither seen
+// nor contradicted, and count against the score; the score without grazing points leaves them
+// out.
+TEST(Evidence, GrazingPointsAreCountedApart) {
+  const OrientedModel box = prepareModel(builtinPart("box"), ModelParams{});  // 60 x 40 x 20, centred
+  Pose pose = Pose::Identity();
+  pose.linear() << 1, 0, 0, 0, 0, 1, 0, -1, 0;  // 60 along x, 20 along y, 40 deep (z)
+  pose.translation() = Vec3(88, 68, 500);        // near face z = 480: x in [58, 118], y in [58, 78]
+  PointCloud scan;
+  for (float x = 58.25f; x < 118; x += 0.5f)  // the near face
+    for (float y = 58.25f; y < 78; y += 0.5f) scan.points.emplace_back(x, y, 480.0f);
+  const auto shadowed = [](float u, float v) {  // the box's outline, in tangent units
+    return u >= 58.0f / 520 && u <= 118.0f / 480 && v >= 58.0f / 520 && v <= 78.0f / 480;
+  };
+  for (float x = -100; x <= 250; x += 1.0f)  // the floor, z = 600
+    for (float y = -100; y <= 250; y += 1.0f)
+      if (!shadowed(x / 600, y / 600)) scan.points.emplace_back(x, y, 600.0f);
+  const PointGrid grid(scan.points);
+  SceneEvidence evidence(scan.points, grid, Vec3::Zero());
+  const Evidence all = evidence.evaluate(pose, box.points, box.normals, 1.0f, box.sample_radius);
+  EXPECT_EQ(all.grazing, 0);  // no grazing angle set: 90 degrees
+  EXPECT_FLOAT_EQ(all.scoreWithoutGrazing(), all.score());
+  evidence.setGrazingAngle(80.0f);
+  const Evidence e = evidence.evaluate(pose, box.points, box.normals, 1.0f, box.sample_radius);
+  EXPECT_EQ(e.facing, all.facing);
+  EXPECT_FLOAT_EQ(e.score(), all.score());
+  // The side faces (800 + 2400 mm^2 against the near face's 1200), less what the near face
+  // hides in the model's z-buffer (its cells of two sample spacings cover most of their sliver).
+  EXPECT_GT(e.grazing, e.facing / 8);
+  EXPECT_LT(e.grazing_supported, e.grazing / 4);  // only where they meet the near face
+  EXPECT_LT(e.score(), 0.8f);
+  EXPECT_GT(e.scoreWithoutGrazing(), 0.95f);
+  // The side faces lie at 83-84 degrees: at 85 none of them is grazing.
+  evidence.setGrazingAngle(85.0f);
+  EXPECT_EQ(evidence.evaluate(pose, box.points, box.normals, 1.0f, box.sample_radius).grazing, 0);
+}
+
 }  // namespace
 }  // namespace binpose

@@ -36,6 +36,7 @@ struct DetectionResult {
   std::size_t plane_points = 0;    ///< ... of them on large planes (floor, walls), left out of voting
   std::size_t subgroups = 0;       ///< sub-groups created
   std::size_t subgroups_run = 0;   ///< sub-groups that went through voting
+  std::size_t subgroups_retried = 0;  ///< sub-groups run again with all their points voting (retry_all_voters)
   std::size_t hypotheses = 0;      ///< clique poses that reached verification
   std::size_t refined = 0;         ///< ... that passed the pre-screen and went through ICP
 };

@@ -44,6 +44,19 @@ struct DetectionParams {
   /// With local votes, only one point per cube of this side votes (the others are its partners):
   /// fewer, evenly spread reference points, mm. 0: every point votes.
   float voter_spacing = 0.0f;
+  /// With voter_spacing: after all sub-groups have run, those that gave no clique of C_n but one
+  /// of at least retry_min_clique, and still hold C_n points, run again, each of their points
+  /// voting (once; a point's candidates do not depend on when it votes). A part seen mostly by
+  /// flat faces gets few right candidates, and half its points left out of the votes can leave
+  /// it under C_n. Off by default; on in `fast` (params.cpp).
+  bool retry_all_voters = false;
+  int retry_min_clique = 3;
+  /// A detection of that second pass must also score at least this with the model points seen
+  /// at more than grazing_angle left out (Evidence::scoreWithoutGrazing): the side walls of a
+  /// part lying flat, seen nearly edge-on, are missing from a scan, and its right pose scores
+  /// low (0.37 for bench ipd8-16's copy 5), as low as the wrong poses the pass also finds.
+  float retry_min_score = 0.4f;
+  float grazing_angle = 80.0f;  ///< degrees between a model normal and the line of sight
   /// With local votes, a point's partners are only one point per cube of this side (a coarser
   /// cloud: fewer features per voter, the same reference points), mm. 0: every point is a partner.
   float partner_spacing = 0.0f;

@@ -5,6 +5,7 @@
 #include <binpose/pose.hpp>
 
 #include <algorithm>
+#include <cmath>
 #include <vector>
 
 namespace binpose {
@@ -37,9 +38,19 @@ struct Evidence {
   int facing = 0;      ///< model points facing the sensor and not hidden by the part itself
   int supported = 0;   ///< ... with a scan point within the tolerance
   int contradicted = 0;  ///< ... where the scan sees a surface clearly behind them (free space)
+  /// Of the counts above, those of points seen at more than the grazing angle
+  /// (SceneEvidence::setGrazingAngle; none without one).
+  int grazing = 0, grazing_supported = 0, grazing_contradicted = 0;
   /// (supported - contradicted) / facing, in [0, 1]: near 1 for a fully visible, correct pose.
   [[nodiscard]] float score() const {
     return facing == 0 ? 0.0f : std::max(0.0f, float(supported - contradicted) / float(facing));
+  }
+  /// The score of the points seen at the grazing angle or less: a sensor drops surface seen
+  /// nearly edge-on (the side walls of a part lying flat), which the score counts as missing.
+  [[nodiscard]] float scoreWithoutGrazing() const {
+    const int seen = facing - grazing;
+    const int net = (supported - grazing_supported) - (contradicted - grazing_contradicted);
+    return seen == 0 ? 0.0f : std::max(0.0f, float(net) / float(seen));
   }
 };
 
@@ -57,6 +68,9 @@ class SceneEvidence {
     background_ = std::move(background);
     background_tolerance_ = background_tolerance;
   }
+  /// Model points whose normal makes more than `degrees` with the line of sight are counted
+  /// apart as grazing (Evidence::grazing). 90, the default: none.
+  void setGrazingAngle(float degrees) { cos_grazing_ = std::cos(degrees * 3.14159265f / 180.0f); }
   /// `model_spacing`: the model's sample spacing, mm, for its self-occlusion test (0: none).
   /// The scan points that support the pose are appended to `support` when it is given.
   [[nodiscard]] Evidence evaluate(const Pose& pose, const Points& model_points, const Points& model_normals,
@@ -71,6 +85,7 @@ class SceneEvidence {
   Vec3 viewpoint_;
   std::vector<Plane> background_;
   float background_tolerance_ = 0;
+  float cos_grazing_ = 0;  ///< cosine of the grazing angle
   Eigen::Matrix3f to_view_;  ///< rotation into the image frame (z along the scan's mean direction)
   float bin_ = 0;            ///< cell size in tangent-plane units
   float u0_ = 0, v0_ = 0;
