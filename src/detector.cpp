@@ -460,8 +460,7 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
                          votingOrbits());  // for those run again
   std::vector<std::uint32_t> voters;
   double work_ms = 0, group_vote_ms = 0, group_match_ms = 0, group_refine_ms = 0;  // see below
-  std::vector<char> no_clique(groups.size(), 0);  // ran, and gave no clique (for the second pass)
-  std::vector<int> largest_clique(groups.size(), 0);  // ... and the size of the largest one searched
+  std::vector<int> largest_clique(groups.size(), 0);  // each sub-group's first clique (for the second pass)
   // The sub-groups of `order`, a batch at a time (see above).
   auto runGroups = [&](const std::vector<std::uint32_t>& order, bool all_voters) {
     for (std::size_t next = 0; next < order.size() && !enough; next += batch) {
@@ -493,10 +492,7 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
         group_vote_ms += slot.outcome.vote_ms;
         group_match_ms += slot.outcome.match_ms;
         group_refine_ms += slot.outcome.refine_ms;
-        if (!all_voters) {
-          no_clique[order[g]] = slot.outcome.ran && slot.outcome.clique.empty();
-          largest_clique[order[g]] = slot.outcome.largest_clique;
-        }
+        if (!all_voters) largest_clique[order[g]] = slot.outcome.largest_clique;
         take(slot.outcome);
       }
     }
@@ -510,13 +506,14 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
     // that still have C_n points, with every point voting (most of the scene is removed by now:
     // few sub-groups, few new voters). One that reached C_n but gave no pose (a mirror image
     // refused) is not run again: on ipd0-16 those were a quarter of the retried sub-groups,
-    // and found nothing.
+    // and found nothing. A first clique under C_n is a sub-group that gave none; one that did
+    // not run had fewer than C_n points, and has no more now.
     order.clear();
     const auto live = [&](std::uint32_t g) {
       return std::count_if(groups[g].begin(), groups[g].end(), [&](std::uint32_t i) { return removed[i] == 0; });
     };
     for (std::uint32_t g = 0; g < groups.size(); ++g)
-      if (no_clique[g] && largest_clique[g] >= p.retry_min_clique && largest_clique[g] < p.C_n && live(g) >= p.C_n)
+      if (largest_clique[g] >= p.retry_min_clique && largest_clique[g] < p.C_n && live(g) >= p.C_n)
         order.push_back(g);
     result.subgroups_retried = order.size();
     runGroups(order, true);

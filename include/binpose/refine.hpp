@@ -70,7 +70,7 @@ class SceneEvidence {
   }
   /// Model points whose normal makes more than `degrees` with the line of sight are counted
   /// apart as grazing (Evidence::grazing). 90, the default: none.
-  void setGrazingAngle(float degrees) { cos_grazing_ = std::cos(degrees * 3.14159265f / 180.0f); }
+  void setGrazingAngle(float degrees) { cos_grazing_ = std::cos(degrees * float(M_PI) / 180.0f); }
   /// `model_spacing`: the model's sample spacing, mm, for its self-occlusion test (0: none).
   /// The scan points that support the pose are appended to `support` when it is given.
   [[nodiscard]] Evidence evaluate(const Pose& pose, const Points& model_points, const Points& model_normals,
