@@ -354,15 +354,20 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   const DetectionParams& p = params_;
   const Points& model = db_.model().points;
 
-  // The scan's grid (one core) is built while the other core sub-samples. A depth image's cells
+  // The scan's grid (one core) is built while the other core sub-samples and indexes a depth
+  // image's points by pixel (most normals' neighbours are found there). A depth image's cells
   // are sized from its pixel neighbours' spacing (no first grid to estimate it); any size gives
   // the same answers.
   std::optional<PointGrid> grid;
+  std::optional<PixelNeighbours> pixels;
   std::vector<std::uint32_t> chosen;
   tbb::parallel_invoke([&] { grid.emplace(scan.points, 2.0f * pixelSpacing(scan)); },
-                       [&] { chosen = subsampleScene(scan.points, p); });
+                       [&] {
+                         chosen = subsampleScene(scan.points, p);
+                         pixels.emplace(scan);
+                       });
   const PointGrid& scan_grid = *grid;
-  PreparedScene scene = prepareScene(scan.points, scan_grid, chosen, p);
+  PreparedScene scene = prepareScene(scan.points, scan_grid, chosen, p, &*pixels);
   result.sampled_points = scene.points.size();
   // The bin's planes and the score's view of the scan side by side, then the sub-groups and the
   // local voters' setup.

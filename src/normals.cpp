@@ -37,6 +37,23 @@ Points estimateNormals(const Points& cloud, const Points& queries, int k, const 
   return estimateNormals(PointGrid(cloud), cloud, queries, k, viewpoint);
 }
 
+namespace {
+
+/// The plane-fit normal of query q from its `found` nearest (indices into cloud, any order),
+/// oriented towards the viewpoint; zero when the neighbourhood is degenerate.
+Vec3 normalFrom(const Points& cloud, const Vec3& q, std::uint32_t* idx, std::size_t found, const Vec3& viewpoint,
+                Points& neighbours) {
+  std::sort(idx, idx + found);  // the fit's sums in one order, whatever the search's
+  neighbours.clear();
+  for (std::size_t j = 0; j < found; ++j) neighbours.push_back(cloud[idx[j]]);
+  Vec3 n;
+  if (!fitPlaneNormal(neighbours, n)) return Vec3::Zero();
+  if (n.dot(viewpoint - q) < 0) n = -n;  // towards the sensor
+  return n;
+}
+
+}  // namespace
+
 Points estimateNormals(const PointGrid& grid, const Points& cloud, const Points& queries, int k, const Vec3& viewpoint) {
   if (k < 3) throw Error(fmt::format("normal estimation needs k >= 3 neighbours, got {}", k));
   Points normals(queries.size(), Vec3::Zero());
@@ -48,13 +65,29 @@ Points estimateNormals(const PointGrid& grid, const Points& cloud, const Points&
     for (std::size_t i = range.begin(); i != range.end(); ++i) {
       if (!queries[i].allFinite()) continue;
       const std::size_t found = grid.knn(queries[i], static_cast<std::size_t>(k), idx.data(), dist.data());
-      std::sort(idx.begin(), idx.begin() + static_cast<long>(found));  // the fit's sums in one order, whatever the search's
-      neighbours.clear();
-      for (std::size_t j = 0; j < found; ++j) neighbours.push_back(cloud[idx[j]]);
-      Vec3 n;
-      if (!fitPlaneNormal(neighbours, n)) continue;
-      if (n.dot(viewpoint - queries[i]) < 0) n = -n;  // towards the sensor
-      normals[i] = n;
+      normals[i] = normalFrom(cloud, queries[i], idx.data(), found, viewpoint, neighbours);
+    }
+  });
+  return normals;
+}
+
+Points estimateNormals(const PointGrid& grid, const PixelNeighbours* pixels, const Points& cloud,
+                       std::span<const std::uint32_t> chosen, int k, const Vec3& viewpoint) {
+  if (k < 3) throw Error(fmt::format("normal estimation needs k >= 3 neighbours, got {}", k));
+  Points normals(chosen.size(), Vec3::Zero());
+  if (cloud.size() < 3) return normals;
+  if (pixels != nullptr && !pixels->usable()) pixels = nullptr;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chosen.size(), 256), [&](const auto& range) {
+    std::vector<std::uint32_t> idx(static_cast<std::size_t>(k));
+    std::vector<float> dist(static_cast<std::size_t>(k));
+    Points neighbours;
+    for (std::size_t i = range.begin(); i != range.end(); ++i) {
+      const Vec3& q = cloud[chosen[i]];
+      if (!q.allFinite()) continue;
+      std::size_t found = static_cast<std::size_t>(k);
+      if (pixels == nullptr || !pixels->knn(chosen[i], found, idx.data(), dist.data()))
+        found = grid.knn(q, static_cast<std::size_t>(k), idx.data(), dist.data());
+      normals[i] = normalFrom(cloud, q, idx.data(), found, viewpoint, neighbours);
     }
   });
   return normals;

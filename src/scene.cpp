@@ -100,14 +100,12 @@ std::vector<std::uint32_t> subsampleScene(const Points& scan, const DetectionPar
 }
 
 PreparedScene prepareScene(const Points& scan, const PointGrid& scan_grid, std::span<const std::uint32_t> chosen,
-                           const DetectionParams& params) {
+                           const DetectionParams& params, const PixelNeighbours* pixels) {
   PreparedScene scene;
-  Points sampled;
-  for (const auto i : chosen) sampled.push_back(scan[i]);
-  const Points normals = estimateNormals(scan_grid, scan, sampled, params.k_normals, params.viewpoint);
-  for (std::size_t i = 0; i < sampled.size(); ++i) {
+  const Points normals = estimateNormals(scan_grid, pixels, scan, chosen, params.k_normals, params.viewpoint);
+  for (std::size_t i = 0; i < chosen.size(); ++i) {
     if (normals[i].squaredNorm() < 0.5f) continue;  // degenerate neighbourhood: skipped
-    scene.points.push_back(sampled[i]);
+    scene.points.push_back(scan[chosen[i]]);
     scene.normals.push_back(normals[i]);
     scene.scan_index.push_back(chosen[i]);
   }

@@ -12,16 +12,6 @@ using namespace binpose;
 
 namespace {
 
-/// The k nearest by brute force: (squared distance, index), nearest first, ties by index.
-std::vector<std::pair<float, std::uint32_t>> bruteKnn(const Points& points, const Vec3& q, std::size_t k) {
-  std::vector<std::pair<float, std::uint32_t>> all;
-  for (std::size_t i = 0; i < points.size(); ++i)
-    if (points[i].allFinite()) all.push_back({(points[i] - q).squaredNorm(), static_cast<std::uint32_t>(i)});
-  std::sort(all.begin(), all.end());
-  all.resize(std::min(k, all.size()));
-  return all;
-}
-
 /// A depth-scan-like surface: a wavy sheet on a 1 mm pixel grid (many equal distances) and a
 /// random cluster above it.
 Points scanLike() {
@@ -50,7 +40,7 @@ TEST(PointGrid, KnnEqualsBruteForceTiesIncluded) {
       std::uint32_t idx[16];
       float d2[16];
       const std::size_t n = grid.knn(q, k, idx, d2);
-      const auto truth = bruteKnn(points, q, k);
+      const auto truth = test::bruteKnn(points, q, k);
       ASSERT_EQ(n, truth.size());
       for (std::size_t j = 0; j < n; ++j) {
         EXPECT_EQ(idx[j], truth[j].second) << "cell " << cell << " query " << t << " rank " << j;
@@ -69,7 +59,7 @@ TEST(PointGrid, NearestWithinEqualsBruteForce) {
     const Vec3 q = points[rng.below(points.size())] + 4.0f * Vec3(float(rng.uniform()) - 0.5f, float(rng.uniform()) - 0.5f,
                                                                   float(rng.uniform()) - 0.5f);
     const float gate = 0.25f + 3.0f * float(rng.uniform());
-    const auto truth = bruteKnn(points, q, 1);
+    const auto truth = test::bruteKnn(points, q, 1);
     const bool within = truth[0].first <= gate * gate;
     std::uint32_t j = 0;
     float d2 = 0;
@@ -93,7 +83,7 @@ TEST(PointGrid, APointExactlyAtTheGateIsWithin) {
   const PointGrid grid(points);
   for (int i = 0; i < 4800; i += 97) {
     const Vec3 q = points[static_cast<std::size_t>(i)] + Vec3(0.5f, 0.0f, 0.0f);
-    ASSERT_EQ(bruteKnn(points, q, 1)[0].first, 0.25f);
+    ASSERT_EQ(test::bruteKnn(points, q, 1)[0].first, 0.25f);
     EXPECT_TRUE(grid.anyWithin(q, 0.5f)) << "point " << i;
     EXPECT_FALSE(grid.anyWithin(q, 0.49f)) << "point " << i;
     std::uint32_t j;
@@ -115,7 +105,7 @@ TEST(PointGrid, NearestWithinAKnownPointsDistanceIsTheNearest) {
       Vec3 q = points[rng.below(points.size())];
       if (t % 3 == 1) q += Vec3(float(rng.uniform()), float(rng.uniform()), float(rng.uniform()));
       if (t % 3 == 2) q += Vec3(0, 0, -5.0f * float(rng.uniform()));
-      const auto truth = bruteKnn(points, q, 12);
+      const auto truth = test::bruteKnn(points, q, 12);
       const auto& known = truth[rng.below(truth.size())];
       farther += known.first > truth[0].first;
       std::uint32_t j = 0;

@@ -4,9 +4,12 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace binpose::test {
 
@@ -29,6 +32,17 @@ inline std::string readAll(const std::string& path) {
 inline void writeAll(const std::string& path, const std::string& bytes) {
   std::ofstream out(path, std::ios::binary);
   out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+}
+
+/// The k nearest of q by brute force: (squared distance, index), nearest first, ties by index.
+inline std::vector<std::pair<float, std::uint32_t>> bruteKnn(const Points& points, const Vec3& q, std::size_t k) {
+  std::vector<std::pair<float, std::uint32_t>> all;
+  for (std::size_t i = 0; i < points.size(); ++i)
+    if (points[i].allFinite()) all.push_back({(points[i] - q).squaredNorm(), static_cast<std::uint32_t>(i)});
+  k = std::min(k, all.size());
+  std::partial_sort(all.begin(), all.begin() + static_cast<long>(k), all.end());
+  all.resize(k);
+  return all;
 }
 
 inline double deg(double rad) { return rad * 180.0 / 3.14159265358979323846; }

@@ -1,7 +1,10 @@
 #pragma once
 // Surface normals by least-squares plane fits (thesis 5.2.2, eq. 30-38).
+#include <binpose/pixel_neighbours.hpp>
 #include <binpose/point_grid.hpp>
 #include <binpose/types.hpp>
+
+#include <span>
 
 namespace binpose {
 
@@ -16,5 +19,10 @@ bool fitPlaneNormal(const Points& points, Vec3& normal);
 Points estimateNormals(const Points& cloud, const Points& queries, int k, const Vec3& viewpoint);
 /// The same with a grid of `cloud` already built.
 Points estimateNormals(const PointGrid& grid, const Points& cloud, const Points& queries, int k, const Vec3& viewpoint);
+/// The same for queries that are the cloud's own points (indices `chosen`). Where `pixels`
+/// (of the same cloud; may be null) proves a point's k nearest from its pixel's neighbours, the
+/// grid is not searched: the same neighbours, so the same normals, in about a fifth of the time.
+Points estimateNormals(const PointGrid& grid, const PixelNeighbours* pixels, const Points& cloud,
+                       std::span<const std::uint32_t> chosen, int k, const Vec3& viewpoint);
 
 }  // namespace binpose

@@ -1,5 +1,6 @@
 #pragma once
 // Scene preparation (thesis 5.2.1-5.2.2): sub-sampling and normals.
+#include <binpose/pixel_neighbours.hpp>
 #include <binpose/point_grid.hpp>
 #include <binpose/params.hpp>
 
@@ -26,9 +27,10 @@ std::vector<std::uint32_t> subsampleScene(const Points& scan, const DetectionPar
 
 /// The chosen scan points (subsampleScene) with normals by plane fits over k_normals
 /// neighbours in the full scan (5.2.2) through `scan_grid`, facing the viewpoint; points whose
-/// neighbourhood is degenerate are dropped.
+/// neighbourhood is degenerate are dropped. `pixels` (of the scan, or null) finds most of the
+/// neighbours among pixel neighbours instead, the same ones.
 PreparedScene prepareScene(const Points& scan, const PointGrid& scan_grid, std::span<const std::uint32_t> chosen,
-                           const DetectionParams& params);
+                           const DetectionParams& params, const PixelNeighbours* pixels = nullptr);
 
 /// Sub-samples the scan to rho_sub (5.2.1): by voxels of side 1/sqrt(rho_sub), or the thesis's
 /// random selection of as many points (seeded). Normals by plane fits over k_normals neighbours

@@ -27,6 +27,11 @@ struct PointCloud {
   int height = 0;
   std::vector<std::int32_t> pixel;
   Vec3 viewpoint = Vec3::Zero();  ///< sensor origin, for orienting normals (PCD VIEWPOINT)
+  /// The pinhole camera's focal lengths in pixels, when each point lies on the ray from the
+  /// origin through its pixel (depthToCloud: the camera frame); 0 when not known. Neighbour
+  /// searches then start from the pixel's neighbours (PixelNeighbours). Keep them 0 for a cloud
+  /// whose points were moved out of that frame.
+  float fx = 0, fy = 0;
 
   [[nodiscard]] std::size_t size() const { return points.size(); }
   [[nodiscard]] bool empty() const { return points.empty(); }

@@ -1,0 +1,129 @@
+// A depth image's nearest neighbours from its pixel neighbours, against brute force.
+#include <binpose/geometry.hpp>
+#include <binpose/io.hpp>
+#include <binpose/normals.hpp>
+#include <binpose/pixel_neighbours.hpp>
+#include <binpose/point_grid.hpp>
+#include <binpose/shapes.hpp>
+#include <binpose/simulation.hpp>
+
+#include "test_util.hpp"
+
+#include <cmath>
+
+using namespace binpose;
+
+namespace {
+
+/// Four caps in the bin, lying flat, tilted and on edge: facing and oblique surfaces, the bin's
+/// walls seen at a grazing angle and depth edges, as the default sensor sees them.
+SimulatedScene capsInBin() {
+  const Mesh cap = makeCap();
+  std::vector<Pose> world;
+  const float tilts[] = {0, 35, 70, 90};
+  for (int c = 0; c < 4; ++c) {
+    Pose p = Pose::Identity();
+    p.linear() = Eigen::AngleAxisf(tilts[c] * float(M_PI) / 180, Vec3(1, float(c), 0).normalized()).toRotationMatrix();
+    p.translation() = Vec3(-50.0f + 35.0f * float(c), 20.0f * float(c % 2) - 10.0f, 20);
+    world.push_back(p);
+  }
+  return renderBin(cap, world, BinParams{}, SensorParams{}, 3);
+}
+
+/// knn() of every `step`-th point against brute force wherever it answers: the same indices
+/// and squared distances in the same order. Returns how many it answered.
+std::size_t answeredAsBruteForce(const PointCloud& cloud, std::size_t k, std::size_t step, std::size_t& asked) {
+  const PixelNeighbours pixels(cloud);
+  EXPECT_TRUE(pixels.usable());
+  std::vector<std::uint32_t> idx(k);
+  std::vector<float> d2(k);
+  std::size_t answered = 0;
+  asked = 0;
+  for (std::size_t i = 0; i < cloud.size(); i += step) {
+    ++asked;
+    if (!pixels.knn(static_cast<std::uint32_t>(i), k, idx.data(), d2.data())) continue;
+    ++answered;
+    const auto truth = test::bruteKnn(cloud.points, cloud.points[i], k);
+    for (std::size_t j = 0; j < k; ++j) {
+      EXPECT_EQ(idx[j], truth[j].second) << "point " << i << " rank " << j;
+      EXPECT_EQ(d2[j], truth[j].first) << "point " << i << " rank " << j;
+    }
+  }
+  return answered;
+}
+
+}  // namespace
+
+TEST(PixelNeighbours, BinScanAnswersAreTheNearestOfTheWholeCloud) {
+  const SimulatedScene scene = capsInBin();
+  ASSERT_GT(scene.cloud.size(), 50000u);
+  for (const std::size_t k : {6u, 8u}) {
+    std::size_t asked = 0;
+    const std::size_t answered = answeredAsBruteForce(scene.cloud, k, 211, asked);
+    // Most points are answered from their pixels (the grazing walls from 9 x 9 pixels).
+    EXPECT_GT(answered, asked * 9 / 10) << "k " << k;
+  }
+}
+
+TEST(PixelNeighbours, NearestBeyondTheWindowAreLeftToTheGrid) {
+  // A surface 30 mm deeper at each column: a point's nearest are in its own column, about 0.7
+  // mm a row apart. Its 8 nearest lie within 4 rows, inside the largest window (9 x 9 pixels);
+  // the 12 nearest reach 6 rows away, beyond it, and must not be answered. Holes at random.
+  const int w = 40, h = 30;
+  Intrinsics k;
+  k.fx = 550;
+  k.fy = 520;
+  k.cx = 20;
+  k.cy = 15;
+  k.depth_scale = 0.1;
+  std::vector<std::uint16_t> depth(std::size_t(w) * h);
+  Rng rng(4);
+  for (int v = 0; v < h; ++v)
+    for (int u = 0; u < w; ++u)
+      depth[std::size_t(v) * w + u] = rng.uniform() < 0.1 ? 0 : static_cast<std::uint16_t>(4000 + 300 * u + v % 3);
+  const PointCloud cloud = depthToCloud(depth, w, h, k);
+  std::size_t asked = 0;
+  EXPECT_GT(answeredAsBruteForce(cloud, 8, 1, asked), asked / 2);
+  EXPECT_EQ(answeredAsBruteForce(cloud, 12, 1, asked), 0u);
+}
+
+TEST(PixelNeighbours, OnlyAPinholeImageWithOnePointPerPixelIsUsed) {
+  Intrinsics k;
+  k.fx = k.fy = 500;
+  k.cx = 2;
+  k.cy = 2;
+  const PointCloud image = depthToCloud(std::vector<std::uint16_t>(25, 500), 5, 5, k);
+  EXPECT_TRUE(PixelNeighbours(image).usable());
+  PointCloud unknown_camera = image;
+  unknown_camera.fx = 0;
+  PointCloud pixel_twice = image;
+  pixel_twice.pixel[1] = pixel_twice.pixel[0];
+  PointCloud behind = image;
+  behind.points[3].z() = -1;
+  PointCloud not_finite = image;
+  not_finite.points[3].x() = NAN;
+  for (const PointCloud* c : {&unknown_camera, &pixel_twice, &behind, &not_finite}) {
+    const PixelNeighbours pixels(*c);
+    EXPECT_FALSE(pixels.usable());
+    std::uint32_t idx[3];
+    float d2[3];
+    EXPECT_FALSE(pixels.knn(12, 3, idx, d2));
+  }
+}
+
+TEST(Normals, FromPixelNeighboursTheSameAsFromTheGrid) {
+  const SimulatedScene scene = capsInBin();
+  const PointGrid grid(scene.cloud.points);
+  const PixelNeighbours pixels(scene.cloud);
+  std::vector<std::uint32_t> chosen;
+  for (std::uint32_t i = 0; i < scene.cloud.size(); i += 7) chosen.push_back(i);
+  const Points from_pixels = estimateNormals(grid, &pixels, scene.cloud.points, chosen, 8, Vec3::Zero());
+  const Points from_grid = estimateNormals(grid, nullptr, scene.cloud.points, chosen, 8, Vec3::Zero());
+  ASSERT_EQ(from_pixels.size(), chosen.size());
+  std::size_t missing = 0;
+  for (std::size_t i = 0; i < chosen.size(); ++i) {
+    EXPECT_EQ(from_pixels[i], from_grid[i]) << "point " << chosen[i];
+    missing += from_grid[i].isZero();
+  }
+  EXPECT_LT(missing, chosen.size() / 100);  // the comparison is of normals, not of zeros
+}
