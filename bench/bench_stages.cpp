@@ -115,6 +115,21 @@ void BM_Normals(benchmark::State& state) {
 }
 BENCHMARK(BM_Normals)->Arg(6)->Arg(12)->Unit(benchmark::kMillisecond);
 
+// The same points by index with k = 8 (fast's k_normals), their neighbours through the grid
+// (Arg 0) or from the depth image's pixel neighbours where those are proved the nearest, the
+// rest through the grid (Arg 1; the pixel index built in the loop too): the same normals.
+void BM_NormalsAtScanPoints(benchmark::State& state) {
+  const Fixture& f = fixture();
+  const bool from_pixels = state.range(0) == 1;
+  for (auto _ : state) {
+    const PixelNeighbours pixels(f.bin.cloud);
+    benchmark::DoNotOptimize(estimateNormals(f.scan_grid, from_pixels ? &pixels : nullptr, f.bin.cloud.points,
+                                             f.scene.scan_index, 8, Vec3::Zero()));
+  }
+  state.SetLabel(from_pixels ? "pixels" : "grid");
+}
+BENCHMARK(BM_NormalsAtScanPoints)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
 void BM_Planes(benchmark::State& state) {  // the bin's floor and walls found in the sampled scene
   const Fixture& f = fixture();
   std::size_t flat = 0;
