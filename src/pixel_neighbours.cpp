@@ -4,15 +4,15 @@
 #include "nearest_k.hpp"
 
 #include <algorithm>
-#include <array>
-#include <bit>
 #include <cmath>
 
 namespace binpose {
 namespace {
 
-/// Pixels each side of the query's in the window searched: 5 x 5 pixels hold the 8 nearest of a
-/// surface up to about 60 degrees from facing the camera.
+/// Pixels each side of the query's in the first window searched and in the largest; the window
+/// grows a ring at a time. On the bench's 16-part bins (k = 8) 27-35% of the points were
+/// answered from 3 x 3 pixels, 57-65% within 7 x 7 and 97.6-99.3% within 9 x 9 (the bin's walls,
+/// seen at a grazing angle, need that much); the rest went to the grid.
 constexpr int kHalfWindow = 1;
 constexpr int kMaxHalfWindow = 4;
 

@@ -21,7 +21,8 @@ Points estimateNormals(const Points& cloud, const Points& queries, int k, const 
 Points estimateNormals(const PointGrid& grid, const Points& cloud, const Points& queries, int k, const Vec3& viewpoint);
 /// The same for queries that are the cloud's own points (indices `chosen`). Where `pixels`
 /// (of the same cloud; may be null) proves a point's k nearest from its pixel's neighbours, the
-/// grid is not searched: the same neighbours, so the same normals, in about a fifth of the time.
+/// grid is not searched: the same neighbours, so the same normals (BM_NormalsAtScanPoints:
+/// 8.5 -> 6.8 ms on the cap bin).
 Points estimateNormals(const PointGrid& grid, const PixelNeighbours* pixels, const Points& cloud,
                        std::span<const std::uint32_t> chosen, int k, const Vec3& viewpoint);
 
