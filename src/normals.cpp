@@ -52,45 +52,44 @@ Vec3 normalFrom(const Points& cloud, const Vec3& q, std::uint32_t* idx, std::siz
   return n;
 }
 
-}  // namespace
-
-Points estimateNormals(const PointGrid& grid, const Points& cloud, const Points& queries, int k, const Vec3& viewpoint) {
+/// The normals of `count` queries (query(i): the point; not finite, no normal), each from the
+/// neighbours nearest(i, q, idx, dist) writes to idx (returning how many, up to k): what both
+/// estimateNormals below share, the checks, the threads and each thread's buffers.
+template <class Query, class Nearest>
+Points planeFitNormals(std::size_t count, const Points& cloud, int k, const Vec3& viewpoint, Query query, Nearest nearest) {
   if (k < 3) throw Error(fmt::format("normal estimation needs k >= 3 neighbours, got {}", k));
-  Points normals(queries.size(), Vec3::Zero());
+  Points normals(count, Vec3::Zero());
   if (cloud.size() < 3) return normals;
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, queries.size(), 256), [&](const auto& range) {
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 256), [&](const auto& range) {
     std::vector<std::uint32_t> idx(static_cast<std::size_t>(k));
     std::vector<float> dist(static_cast<std::size_t>(k));
     Points neighbours;
     for (std::size_t i = range.begin(); i != range.end(); ++i) {
-      if (!queries[i].allFinite()) continue;
-      const std::size_t found = grid.knn(queries[i], static_cast<std::size_t>(k), idx.data(), dist.data());
-      normals[i] = normalFrom(cloud, queries[i], idx.data(), found, viewpoint, neighbours);
+      const Vec3& q = query(i);
+      if (!q.allFinite()) continue;
+      const std::size_t found = nearest(i, q, idx.data(), dist.data());
+      normals[i] = normalFrom(cloud, q, idx.data(), found, viewpoint, neighbours);
     }
   });
   return normals;
 }
 
+}  // namespace
+
+Points estimateNormals(const PointGrid& grid, const Points& cloud, const Points& queries, int k, const Vec3& viewpoint) {
+  return planeFitNormals(
+      queries.size(), cloud, k, viewpoint, [&](std::size_t i) -> const Vec3& { return queries[i]; },
+      [&](std::size_t, const Vec3& q, std::uint32_t* idx, float* dist) { return grid.knn(q, static_cast<std::size_t>(k), idx, dist); });
+}
+
 Points estimateNormals(const PointGrid& grid, const PixelNeighbours* pixels, const Points& cloud,
                        std::span<const std::uint32_t> chosen, int k, const Vec3& viewpoint) {
-  if (k < 3) throw Error(fmt::format("normal estimation needs k >= 3 neighbours, got {}", k));
-  Points normals(chosen.size(), Vec3::Zero());
-  if (cloud.size() < 3) return normals;
-  if (pixels != nullptr && !pixels->usable()) pixels = nullptr;
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chosen.size(), 256), [&](const auto& range) {
-    std::vector<std::uint32_t> idx(static_cast<std::size_t>(k));
-    std::vector<float> dist(static_cast<std::size_t>(k));
-    Points neighbours;
-    for (std::size_t i = range.begin(); i != range.end(); ++i) {
-      const Vec3& q = cloud[chosen[i]];
-      if (!q.allFinite()) continue;
-      std::size_t found = static_cast<std::size_t>(k);
-      if (pixels == nullptr || !pixels->knn(chosen[i], found, idx.data(), dist.data()))
-        found = grid.knn(q, static_cast<std::size_t>(k), idx.data(), dist.data());
-      normals[i] = normalFrom(cloud, q, idx.data(), found, viewpoint, neighbours);
-    }
-  });
-  return normals;
+  return planeFitNormals(
+      chosen.size(), cloud, k, viewpoint, [&](std::size_t i) -> const Vec3& { return cloud[chosen[i]]; },
+      [&](std::size_t i, const Vec3& q, std::uint32_t* idx, float* dist) {
+        const auto wanted = static_cast<std::size_t>(k);
+        return pixels != nullptr && pixels->knn(chosen[i], wanted, idx, dist) ? wanted : grid.knn(q, wanted, idx, dist);
+      });
 }
 
 }  // namespace binpose

@@ -11,8 +11,6 @@
 namespace binpose {
 namespace {
 
-using Best = detail::NearestK;
-
 int clampCell(float v, int n) { return static_cast<int>(std::clamp(std::floor(v), 0.0f, static_cast<float>(n - 1))); }
 
 /// Shrinks the box [lo, hi] to the bulk of the points: per axis, the 1st to 99th percentile of
@@ -170,7 +168,7 @@ std::size_t PointGrid::knn(const Vec3& q, std::size_t k, std::uint32_t* indices,
   // Boxes of growing radius; done once the k-th nearest lies no farther than the box's nearest
   // face (every point that close lies inside the box), or the box holds every cell.
   for (float radius = cell_;; radius *= 2.0f) {
-    Best best{k, 0, indices, sq_dists};
+    detail::NearestK best{k, 0, indices, sq_dists};
     const Box b = boxAround(q, radius);
     forEachInBox(b, [&](std::uint32_t s) { best.offer((points_[s] - q).squaredNorm(), ids_[s]); });
     const float covered = coveredDistance(q, b);
@@ -179,7 +177,7 @@ std::size_t PointGrid::knn(const Vec3& q, std::size_t k, std::uint32_t* indices,
 }
 
 bool PointGrid::searchBox(const Vec3& q, float radius, float limit, std::uint32_t& index, float& sq_dist) const {
-  Best best{1, 0, &index, &sq_dist};
+  detail::NearestK best{1, 0, &index, &sq_dist};
   forEachInBox(boxAround(q, radius), [&](std::uint32_t s) {
     const float d2 = (points_[s] - q).squaredNorm();
     if (d2 <= limit) best.offer(d2, ids_[s]);
