@@ -196,7 +196,105 @@ void featureKeysAvx2(const Vec3& p, const Vec3& n, const Points& points, const P
 }
 #endif
 
+void overlapFeatureKeysScalar(std::size_t i, std::size_t j0, const Points& points, const Points& normals,
+                              const KeySpace& keys, std::vector<std::uint32_t>& out) {
+  std::array<std::uint32_t, KeySpace::kMaxKeys> buf{};
+  PairFeature f;
+  for (std::size_t j = j0; j < points.size(); ++j) {
+    if (j == i || !computeFeature(points[i], normals[i], points[j], normals[j], f)) continue;
+    const int n = keys.overlapKeys(f, buf);
+    out.insert(out.end(), buf.begin(), buf.begin() + n);
+  }
+}
+
+#if defined(__x86_64__)
+/// KeySpace::bins on 8 lanes: the bin (eq. 4) and the key's step to the neighbour bin (eq. 7):
+/// -stride below, +stride above, 0 when there is none.
+BINPOSE_AVX2_INLINE void bins8(__m256 value, __m256 step, int n_bins, __m256 overlap, __m256 upper_edge,
+                               __m256i stride, __m256i& first, __m256i& side) {
+  const __m256 scaled = _mm256_div_ps(value, step);
+  first = _mm256_min_epi32(_mm256_cvttps_epi32(_mm256_floor_ps(scaled)), _mm256_set1_epi32(n_bins - 1));
+  const __m256 frac = _mm256_sub_ps(scaled, _mm256_cvtepi32_ps(first));
+  const __m256i lower = _mm256_and_si256(_mm256_castps_si256(_mm256_cmp_ps(frac, overlap, _CMP_LT_OQ)),
+                                         _mm256_cmpgt_epi32(first, _mm256_setzero_si256()));
+  const __m256i upper = _mm256_and_si256(_mm256_castps_si256(_mm256_cmp_ps(frac, upper_edge, _CMP_GT_OQ)),
+                                         _mm256_cmpgt_epi32(_mm256_set1_epi32(n_bins - 1), first));
+  side = _mm256_blendv_epi8(_mm256_and_si256(upper, stride), _mm256_sub_epi32(_mm256_setzero_si256(), stride), lower);
+}
+
+__attribute__((target("avx2"))) void overlapFeatureKeysAvx2(std::size_t i, const Points& points,
+                                                            const Points& normals, const KeySpace& keys,
+                                                            std::vector<std::uint32_t>& out) {
+  const Vec3 &p = points[i], &n = normals[i];
+  const __m256 px = _mm256_set1_ps(p.x()), py = _mm256_set1_ps(p.y()), pz = _mm256_set1_ps(p.z());
+  const __m256 nx = _mm256_set1_ps(n.x()), ny = _mm256_set1_ps(n.y()), nz = _mm256_set1_ps(n.z());
+  const QuantizationParams& qp = keys.params();
+  const __m256 d_dist = _mm256_set1_ps(qp.d_dist), d_angle = _mm256_set1_ps(qp.d_angle);
+  const __m256 d_limit = _mm256_set1_ps(qp.d_dist * static_cast<float>(keys.distanceBins()));
+  const __m256 overlap = _mm256_set1_ps(qp.overlap), upper_edge = _mm256_set1_ps(1.0f - qp.overlap);
+  const int nA = keys.angleBins(), nD = keys.distanceBins();
+  const __m256i vnA = _mm256_set1_epi32(nA);
+  const __m256i strides[4] = {_mm256_set1_epi32(nA * nA * nA), _mm256_set1_epi32(nA * nA), vnA, _mm256_set1_epi32(1)};
+  alignas(32) float q[6][8];
+  alignas(32) std::int32_t key[8], side[4][8];
+  std::uint32_t block[8 * KeySpace::kMaxKeys];  // one step's keys
+  std::size_t j0 = 0;
+  for (; j0 + 8 <= points.size(); j0 += 8) {
+    for (int l = 0; l < 8; ++l) {  // the 8 partners' points and normals, a lane each
+      const Vec3& m = points[j0 + l];
+      const Vec3& mn = normals[j0 + l];
+      q[0][l] = m.x(), q[1][l] = m.y(), q[2][l] = m.z(), q[3][l] = mn.x(), q[4][l] = mn.y(), q[5][l] = mn.z();
+    }
+    // computeFeature's operations in its order (eq. 2-3), as featureKeysAvx2.
+    const __m256 dx = _mm256_sub_ps(_mm256_load_ps(q[0]), px), dy = _mm256_sub_ps(_mm256_load_ps(q[1]), py),
+                 dz = _mm256_sub_ps(_mm256_load_ps(q[2]), pz);
+    const __m256 d = _mm256_sqrt_ps(dot8(dx, dy, dz, dx, dy, dz));
+    const __m256 ux = _mm256_div_ps(dx, d), uy = _mm256_div_ps(dy, d), uz = _mm256_div_ps(dz, d);
+    const __m256 mx = _mm256_load_ps(q[3]), my = _mm256_load_ps(q[4]), mz = _mm256_load_ps(q[5]);
+    const __m256 value[4] = {d, fastAcos8(dot8(nx, ny, nz, ux, uy, uz)), fastAcos8(dot8(mx, my, mz, ux, uy, uz)),
+                             fastAcos8(dot8(nx, ny, nz, mx, my, mz))};
+    // overlapKeys (eq. 4-7): the key of the four bins, and each dimension's step to its neighbour.
+    __m256i k = _mm256_setzero_si256();
+    for (int dim = 0; dim < 4; ++dim) {
+      __m256i first, step;
+      bins8(value[dim], dim == 0 ? d_dist : d_angle, dim == 0 ? nD : nA, overlap, upper_edge, strides[dim], first, step);
+      k = dim == 0 ? first : _mm256_add_epi32(_mm256_mullo_epi32(k, vnA), first);
+      _mm256_store_si256(reinterpret_cast<__m256i*>(side[dim]), step);
+    }
+    _mm256_store_si256(reinterpret_cast<__m256i*>(key), k);
+    const __m256 kept = _mm256_and_ps(_mm256_cmp_ps(d, _mm256_setzero_ps(), _CMP_GT_OQ),
+                                      _mm256_cmp_ps(d, d_limit, _CMP_LT_OQ));
+    const auto defined = static_cast<unsigned>(_mm256_movemask_ps(kept));
+    std::uint32_t* end = block;
+    for (int l = 0; l < 8; ++l) {
+      if (((defined >> l) & 1) == 0 || j0 + l == i) continue;
+      // Doubling the list dimension by dimension, the last first, gives overlapKeys's order.
+      std::uint32_t* start = end;
+      *end++ = static_cast<std::uint32_t>(key[l]);
+      for (int dim = 3; dim >= 0; --dim) {
+        if (side[dim][l] == 0) continue;
+        const auto step = static_cast<std::uint32_t>(side[dim][l]);
+        for (std::uint32_t *from = start, *to = end; from != to;) *end++ = *from++ + step;
+      }
+    }
+    out.insert(out.end(), block, end);
+  }
+  overlapFeatureKeysScalar(i, j0, points, normals, keys, out);
+}
+#else
+void overlapFeatureKeysAvx2(std::size_t i, const Points& points, const Points& normals, const KeySpace& keys,
+                            std::vector<std::uint32_t>& out) {
+  overlapFeatureKeysScalar(i, 0, points, normals, keys, out);
+}
+#endif
+
 }  // namespace
+
+void overlapFeatureKeys(std::size_t i, const Points& points, const Points& normals, const KeySpace& keys,
+                        std::vector<std::uint32_t>& out) {
+  if (detail::haveAvx2()) overlapFeatureKeysAvx2(i, points, normals, keys, out);
+  else overlapFeatureKeysScalar(i, 0, points, normals, keys, out);
+}
 
 void featureKeys(const Vec3& p, const Vec3& n, const Points& points, const Points& normals,
                  std::span<const std::uint32_t> others, std::uint32_t skip, const KeySpace& keys,

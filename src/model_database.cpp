@@ -24,10 +24,10 @@ constexpr char kMagic[8] = {'B', 'P', 'O', 'S', 'E', 'D', 'B', '\0'};
 
 /// Sorts keys below `limit` by least-significant-digit radix, 11 bits a pass. It replaced
 /// std::sort (15% of a build in perf): the cap's database build 836 -> 732 ms.
-void radixSort(std::vector<std::uint32_t>& v, std::uint32_t limit) {
+void radixSort(std::vector<std::uint32_t>& v, std::vector<std::uint32_t>& tmp, std::uint32_t limit) {
   constexpr int kBits = 11;
   constexpr std::uint32_t kMask = (1u << kBits) - 1;
-  std::vector<std::uint32_t> tmp(v.size());
+  tmp.resize(v.size());
   std::array<std::uint32_t, kMask + 1> count{};
   const auto bits = static_cast<int>(std::bit_width(limit));
   for (int shift = 0; shift < bits; shift += kBits) {
@@ -40,31 +40,34 @@ void radixSort(std::vector<std::uint32_t>& v, std::uint32_t limit) {
   }
 }
 
+/// What a thread keeps between model points: a bit per key, all clear between points; the keys
+/// of one point's features, then the distinct ones, and the sort's buffer.
+struct PointScratch {
+  std::vector<std::uint64_t> taken;
+  std::vector<std::uint32_t> keys, distinct, sort_buffer;
+};
+
 /// Sorted, distinct keys of every directed feature starting at model point i (eq. 5, 7).
-/// `taken` (one bit per key, owned by the calling thread, all clear between calls) marks keys
-/// already taken for i, so that only the distinct keys are sorted. A bit per key keeps the marks
-/// in the core's L2 cache (a 32-bit stamp per key did not fit: 17% of a build in perf).
+/// `taken` marks keys already taken for i, so that only the distinct keys are sorted. A bit per
+/// key keeps the marks in the core's L2 cache (a 32-bit stamp per key did not fit: 17% of a
+/// build in perf).
 std::vector<std::uint32_t> keysOfPoint(const OrientedModel& m, const KeySpace& keys, std::size_t i,
-                                       std::vector<std::uint64_t>& taken) {
-  std::vector<std::uint32_t> out;
-  out.reserve(m.points.size() * 2);
-  std::array<std::uint32_t, KeySpace::kMaxKeys> buf{};
-  PairFeature f;
-  for (std::size_t j = 0; j < m.points.size(); ++j) {
-    if (j == i || !computeFeature(m.points[i], m.normals[i], m.points[j], m.normals[j], f)) continue;
-    const int n = keys.overlapKeys(f, buf);
-    for (int k = 0; k < n; ++k) {
-      std::uint64_t& word = taken[buf[k] / 64];
-      const std::uint64_t bit = 1ull << (buf[k] % 64);
-      if (!(word & bit)) {  // m_i at most once per key
-        word |= bit;
-        out.push_back(buf[k]);
-      }
+                                       PointScratch& scratch) {
+  scratch.keys.clear();
+  overlapFeatureKeys(i, m.points, m.normals, keys, scratch.keys);
+  auto& distinct = scratch.distinct;
+  distinct.clear();
+  for (const auto key : scratch.keys) {
+    std::uint64_t& word = scratch.taken[key / 64];
+    const std::uint64_t bit = 1ull << (key % 64);
+    if (!(word & bit)) {  // m_i at most once per key
+      word |= bit;
+      distinct.push_back(key);
     }
   }
-  for (const auto key : out) taken[key / 64] = 0;
-  radixSort(out, keys.size());
-  return out;
+  for (const auto key : distinct) scratch.taken[key / 64] = 0;
+  radixSort(distinct, scratch.sort_buffer, keys.size());
+  return {distinct.begin(), distinct.end()};
 }
 
 void validateModel(const OrientedModel& m) {
@@ -126,8 +129,8 @@ ModelDatabase ModelDatabase::build(OrientedModel model, const QuantizationParams
   db.keys_ = KeySpace(params, model.diameter);
   const std::size_t n = model.points.size();
   std::vector<std::vector<std::uint32_t>> per_point(n);
-  tbb::enumerable_thread_specific<std::vector<std::uint64_t>> taken(std::vector<std::uint64_t>(db.keys_.size() / 64 + 1, 0));
-  tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) { per_point[i] = keysOfPoint(model, db.keys_, i, taken.local()); });
+  tbb::enumerable_thread_specific<PointScratch> scratch(PointScratch{std::vector<std::uint64_t>(db.keys_.size() / 64 + 1, 0), {}, {}, {}});
+  tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) { per_point[i] = keysOfPoint(model, db.keys_, i, scratch.local()); });
 
   std::uint64_t total = 0;
   for (const auto& k : per_point) total += k.size();

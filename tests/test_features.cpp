@@ -199,3 +199,37 @@ TEST(Quantization, SceneKeysInBatchesAreTheKeysOneByOne) {
   EXPECT_EQ(all.size(), points.size() - 2);  // neither point 3 itself nor point 17 at its place
   EXPECT_GT(invalid, 0);
 }
+
+TEST(Quantization, ModelKeysInBatchesAreTheOverlapKeysOneByOne) {
+  // overlapFeatureKeys (8 pairs to a SIMD step) against computeFeature and overlapKeys one pair
+  // at a time: the same keys in the same order, the point itself skipped, a point at its place
+  // left out, pairs beyond the key space without keys, and a count not a multiple of 8.
+  const KeySpace keys(thesisQuantization(), 60.0f);
+  Rng rng(7);
+  Points points, normals;
+  for (int i = 0; i < 205; ++i) {
+    const float reach = i % 10 == 0 ? 90.0f : 40.0f;  // some pairs beyond the 60 mm key space
+    points.emplace_back(float(reach * rng.uniform()), float(reach * rng.uniform()), float(reach * rng.uniform()));
+    normals.push_back(Vec3(float(rng.uniform() - 0.5), float(rng.uniform() - 0.5), float(rng.uniform() - 0.5)).normalized());
+  }
+  points[17] = points[3];     // coincides with point 3
+  normals[40] = normals[3];   // theta3 = 0
+  normals[41] = -normals[3];  // theta3 = pi
+  std::size_t beyond = 0, overlapping = 0;
+  for (const std::size_t i : {std::size_t{0}, std::size_t{3}, std::size_t{40}, std::size_t{204}}) {
+    std::vector<std::uint32_t> expected, got;
+    std::array<std::uint32_t, KeySpace::kMaxKeys> buf{};
+    for (std::size_t j = 0; j < points.size(); ++j) {
+      PairFeature f;
+      if (j == i || !computeFeature(points[i], normals[i], points[j], normals[j], f)) continue;
+      const int n = keys.overlapKeys(f, buf);
+      beyond += n == 0;
+      overlapping += n > 1;
+      expected.insert(expected.end(), buf.begin(), buf.begin() + n);
+    }
+    overlapFeatureKeys(i, points, normals, keys, got);
+    EXPECT_EQ(got, expected) << i;
+  }
+  EXPECT_GT(beyond, 0u);
+  EXPECT_GT(overlapping, 100u);
+}

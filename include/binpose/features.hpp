@@ -67,4 +67,11 @@ void featureKeys(const Vec3& p, const Vec3& n, const Points& points, const Point
                  std::span<const std::uint32_t> others, std::uint32_t skip, const KeySpace& keys,
                  std::vector<std::uint32_t>& out);
 
+/// The model side of eq. 1-7 for every pair from point i: for each j of `points` but i, in
+/// order, the keys KeySpace::overlapKeys gives the feature (i -> j), in its order, appended to
+/// `out` (none when the points coincide or d lies beyond the key space). The same keys as
+/// computeFeature and overlapKeys one pair at a time, 8 pairs to a step where the CPU has AVX2.
+void overlapFeatureKeys(std::size_t i, const Points& points, const Points& normals, const KeySpace& keys,
+                        std::vector<std::uint32_t>& out);
+
 }  // namespace binpose
