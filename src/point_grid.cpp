@@ -195,6 +195,29 @@ bool PointGrid::nearest(const Vec3& q, float max_distance, std::uint32_t& index,
   return searchBox(q, max_distance, max_distance * max_distance, index, sq_dist);
 }
 
+bool PointGrid::nearest(const Vec3& q, float max_distance, std::uint32_t& index, float& sq_dist,
+                        float& clearance) const {
+  const bool missed_before = clearance > 0;
+  clearance = 0;
+  if (ids_.empty() || !q.allFinite() || !(max_distance >= 0)) return false;
+  if (!missed_before)  // as nearest(); a query that found none last time likely finds none nearer
+    for (const float radius : {0.5f * cell_, cell_})
+      if (max_distance > radius && searchBox(q, radius, radius * radius, index, sq_dist)) return true;
+  // The last box as searchBox, keeping the nearest point seen beyond the limit too.
+  const Box b = boxAround(q, max_distance);
+  const float limit = max_distance * max_distance;
+  detail::NearestK best{1, 0, &index, &sq_dist};
+  float seen = INFINITY;
+  forEachInBox(b, [&](std::uint32_t s) {
+    const float d2 = (points_[s] - q).squaredNorm();
+    if (d2 <= limit) best.offer(d2, ids_[s]);
+    seen = std::min(seen, d2);
+  });
+  if (best.count == 1) return true;
+  clearance = std::min(std::sqrt(seen), coveredDistance(q, b));
+  return false;
+}
+
 bool PointGrid::nearestWithin(const Vec3& q, float sq_limit, std::uint32_t& index, float& sq_dist) const {
   if (ids_.empty() || !q.allFinite() || !(sq_limit >= 0)) return false;
   // The box a little wider than the limit's root, so rounding leaves out no point at the limit.

@@ -77,6 +77,10 @@ constexpr int kCoarseSteps = 6;
 /// pairs then flip back and forth between two sets (a limit cycle), and the pose with them.
 constexpr double kStalled = 0.01;
 
+/// Rounding allowance of the clearance test (mm): far above float rounding at a scan's
+/// coordinates, far below the clearances that let a search be skipped.
+constexpr float kClearanceMargin = 0.01f;
+
 /// Directions of the 6-dof step whose curvature is below this share of the largest one are
 /// left alone (degeneracy-aware ICP, Zhang et al. 2016): the spin of a body of revolution, the
 /// slide of a flat face. Solving for them fits noise, and the pose drifts there from step to step.
@@ -127,6 +131,13 @@ Pose refinePose(const Pose& pose, const Points& model_points, const Points& mode
   // the nearest lies no farther than the old pair, and a search of that small box finds it (the
   // same pair as a search out to the gate).
   std::vector<std::uint32_t> paired(model_points.size(), kUnpaired);
+  // An unpaired point's last search: where the point was, and how far around it the scan had no
+  // point. Most of a posed model's sensor-facing points lie where the scan sees another surface
+  // (under other parts, or the part's own hidden side): each step's search for them finds
+  // nothing (70% of the cap bin's ICP searches). Moved by less than clearance - gate since,
+  // such a point still has none within the gate (triangle inequality), and is not searched.
+  std::vector<Vec3> missed_at(model_points.size());
+  std::vector<float> clearance(model_points.size(), 0.0f);
   double last_moved = INFINITY;  // the last step's, in the current stage
   for (int it = 0; it < params.iterations; ++it) {
     // Linearised about the posed model's centre: a part's free motions (the spin of a body of
@@ -143,11 +154,14 @@ Pose refinePose(const Pose& pose, const Points& model_points, const Points& mode
         const Vec3 n = current.linear() * model_normals[i];
         if (!facesSensor(p, n, params.viewpoint)) continue;
         std::uint32_t& j = paired[i];
+        if (j == kUnpaired && clearance[i] - (p - missed_at[i]).norm() > gate + kClearanceMargin) continue;
         float d2;
         const float old_d2 = j != kUnpaired ? (scan[j] - p).squaredNorm() : INFINITY;
-        const bool found = old_d2 <= gate * gate ? scan_grid.nearestWithin(p, old_d2, j, d2) : scan_grid.nearest(p, gate, j, d2);
+        const bool found = old_d2 <= gate * gate ? scan_grid.nearestWithin(p, old_d2, j, d2)
+                                                 : scan_grid.nearest(p, gate, j, d2, clearance[i]);
         if (!found) {
           j = kUnpaired;
+          missed_at[i] = p;
           continue;
         }
         // residual n.(q - p) against the step (omega, t): n.(omega x (p - c) + t)

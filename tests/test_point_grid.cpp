@@ -77,6 +77,42 @@ TEST(PointGrid, NearestWithinEqualsBruteForce) {
   EXPECT_GT(missed, 100);
 }
 
+TEST(PointGrid, AMissReportsAClearanceFreeOfPoints) {
+  // nearest() with a clearance: the same answers as nearest(), whether or not the query missed
+  // before; on a miss, no point lies within the clearance, which is at least the gate.
+  const Points points = scanLike();
+  for (const float cell : {0.0f, 0.7f, 2.0f}) {
+    const PointGrid grid(points, cell);
+    Rng rng(13);
+    int missed = 0, beyond_gate = 0;
+    for (int t = 0; t < 1500; ++t) {
+      const Vec3 q = points[rng.below(points.size())] + 8.0f * Vec3(float(rng.uniform()) - 0.5f, float(rng.uniform()) - 0.5f,
+                                                                    float(rng.uniform()) - 0.5f);
+      const float gate = 0.25f + 3.0f * float(rng.uniform());
+      const auto truth = test::bruteKnn(points, q, 1);
+      std::uint32_t j0 = 0, j = 0;
+      float d0 = 0, d2 = 0;
+      const bool found = grid.nearest(q, gate, j0, d0);
+      for (const float before : {0.0f, 1.0f}) {  // a first search, and one after a miss
+        float clearance = before;
+        ASSERT_EQ(grid.nearest(q, gate, j, d2, clearance), found) << "cell " << cell << " query " << t;
+        if (found) {
+          EXPECT_EQ(j, j0);
+          EXPECT_EQ(d2, d0);
+          EXPECT_EQ(clearance, 0.0f);
+          continue;
+        }
+        EXPECT_GE(clearance, gate * (1 - 1e-5f)) << "cell " << cell << " query " << t;
+        EXPECT_LE(clearance * clearance, truth[0].first * (1 + 1e-5f)) << "cell " << cell << " query " << t;
+        missed += before == 0;
+        beyond_gate += before == 0 && clearance > 1.2f * gate;
+      }
+    }
+    EXPECT_GT(missed, 200) << "cell " << cell;
+    EXPECT_GT(beyond_gate, 50) << "cell " << cell;  // the clearance tells more than the gate
+  }
+}
+
 TEST(PointGrid, APointExactlyAtTheGateIsWithin) {
   // Half-way between two pixels of the sheet: the nearest is exactly 0.5 mm away.
   const Points points = scanLike();

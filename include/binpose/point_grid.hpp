@@ -33,6 +33,13 @@ class PointGrid {
   /// The nearest point of q within `max_distance` (equal distances: the lower index); false when
   /// there is none.
   bool nearest(const Vec3& q, float max_distance, std::uint32_t& index, float& sq_dist) const;
+  /// nearest(), and when there is none, `clearance`: a distance (max_distance or more) within
+  /// which q has no point, the nearer of the searched cells' nearest point and the searched
+  /// box's nearest inner face (0 when one is found). A caller whose query moves a little (ICP)
+  /// knows without a search that the query moved by less than clearance - max_distance still
+  /// has none. On entry, a clearance above 0 (the query's last search found none) skips the
+  /// small boxes around q that settle most queries: the same answer, sooner.
+  bool nearest(const Vec3& q, float max_distance, std::uint32_t& index, float& sq_dist, float& clearance) const;
   /// The nearest point of q at a squared distance of at most `sq_limit`, as nearest() with
   /// max_distance^2 = sq_limit: for a caller that knows a point that close (ICP, whose pairs move
   /// little from one step to the next), a search of that small box alone.
