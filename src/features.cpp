@@ -147,35 +147,55 @@ BINPOSE_AVX2_INLINE __m256i angleBin8(__m256 a, __m256 step, __m256i last) {
   return _mm256_min_epi32(_mm256_cvttps_epi32(_mm256_div_ps(a, step)), last);
 }
 
+/// computeFeature on 8 lanes, its operations in its order: the features (d, theta1, theta2,
+/// theta3) from one oriented point to the 8 points partner(0..7) with their normals.
+struct Features8 {
+  __m256 d, theta1, theta2, theta3;
+};
+struct Point8 {  ///< one oriented point, broadcast to 8 lanes
+  __m256 px, py, pz, nx, ny, nz;
+};
+BINPOSE_AVX2_INLINE Point8 broadcast8(const Vec3& p, const Vec3& n) {
+  return {_mm256_set1_ps(p.x()), _mm256_set1_ps(p.y()), _mm256_set1_ps(p.z()),
+          _mm256_set1_ps(n.x()), _mm256_set1_ps(n.y()), _mm256_set1_ps(n.z())};
+}
+template <class Partner>
+BINPOSE_AVX2_INLINE Features8 features8(const Point8& o, const Points& points, const Points& normals, Partner partner) {
+  alignas(32) float q[6][8];
+  for (int l = 0; l < 8; ++l) {  // the 8 partners' points and normals, a lane each
+    const Vec3& m = points[partner(l)];
+    const Vec3& mn = normals[partner(l)];
+    q[0][l] = m.x(), q[1][l] = m.y(), q[2][l] = m.z(), q[3][l] = mn.x(), q[4][l] = mn.y(), q[5][l] = mn.z();
+  }
+  // eq. 3: d = m2 - m1, |d| as Eigen's norm (sqrt of x^2 + (y^2 + z^2)), u = d / |d|.
+  const __m256 dx = _mm256_sub_ps(_mm256_load_ps(q[0]), o.px), dy = _mm256_sub_ps(_mm256_load_ps(q[1]), o.py),
+               dz = _mm256_sub_ps(_mm256_load_ps(q[2]), o.pz);
+  const __m256 d = _mm256_sqrt_ps(dot8(dx, dy, dz, dx, dy, dz));
+  const __m256 ux = _mm256_div_ps(dx, d), uy = _mm256_div_ps(dy, d), uz = _mm256_div_ps(dz, d);
+  const __m256 mx = _mm256_load_ps(q[3]), my = _mm256_load_ps(q[4]), mz = _mm256_load_ps(q[5]);
+  // eq. 2
+  return {d, fastAcos8(dot8(o.nx, o.ny, o.nz, ux, uy, uz)), fastAcos8(dot8(mx, my, mz, ux, uy, uz)),
+          fastAcos8(dot8(o.nx, o.ny, o.nz, mx, my, mz))};
+}
+
 __attribute__((target("avx2"))) void featureKeysAvx2(const Vec3& p, const Vec3& n, const Points& points,
                                                      const Points& normals, std::span<const std::uint32_t> others,
                                                      std::uint32_t skip, const KeySpace& keys,
                                                      std::vector<std::uint32_t>& out) {
-  const __m256 px = _mm256_set1_ps(p.x()), py = _mm256_set1_ps(p.y()), pz = _mm256_set1_ps(p.z());
-  const __m256 nx = _mm256_set1_ps(n.x()), ny = _mm256_set1_ps(n.y()), nz = _mm256_set1_ps(n.z());
+  const Point8 o = broadcast8(p, n);
   const __m256 d_dist = _mm256_set1_ps(keys.params().d_dist), d_angle = _mm256_set1_ps(keys.params().d_angle);
   const __m256 n_dist = _mm256_set1_ps(static_cast<float>(keys.distanceBins()));
   const auto nA = keys.angleBins();
   const __m256i last = _mm256_set1_epi32(nA - 1), vnA = _mm256_set1_epi32(nA);
-  alignas(32) float q[6][8];
   alignas(32) std::uint32_t key[8];
   std::size_t i = 0;
   for (; i + 8 <= others.size(); i += 8) {
-    for (int l = 0; l < 8; ++l) {  // the 8 partners' points and normals, a lane each
-      const Vec3& m = points[others[i + l]];
-      const Vec3& mn = normals[others[i + l]];
-      q[0][l] = m.x(), q[1][l] = m.y(), q[2][l] = m.z(), q[3][l] = mn.x(), q[4][l] = mn.y(), q[5][l] = mn.z();
-    }
-    // eq. 3: d = m2 - m1, |d| as Eigen's norm (sqrt of x^2 + (y^2 + z^2)), u = d / |d|.
-    const __m256 dx = _mm256_sub_ps(_mm256_load_ps(q[0]), px), dy = _mm256_sub_ps(_mm256_load_ps(q[1]), py),
-                 dz = _mm256_sub_ps(_mm256_load_ps(q[2]), pz);
-    const __m256 d = _mm256_sqrt_ps(dot8(dx, dy, dz, dx, dy, dz));
-    const __m256 ux = _mm256_div_ps(dx, d), uy = _mm256_div_ps(dy, d), uz = _mm256_div_ps(dz, d);
-    const __m256 mx = _mm256_load_ps(q[3]), my = _mm256_load_ps(q[4]), mz = _mm256_load_ps(q[5]);
-    // eq. 2 and 4-5: the three angles' bins and the distance's.
-    const __m256i b1 = angleBin8(fastAcos8(dot8(nx, ny, nz, ux, uy, uz)), d_angle, last);
-    const __m256i b2 = angleBin8(fastAcos8(dot8(mx, my, mz, ux, uy, uz)), d_angle, last);
-    const __m256i b3 = angleBin8(fastAcos8(dot8(nx, ny, nz, mx, my, mz)), d_angle, last);
+    const Features8 f = features8(o, points, normals, [&](int l) { return others[i + l]; });
+    const __m256 d = f.d;
+    // eq. 4-5: the three angles' bins and the distance's.
+    const __m256i b1 = angleBin8(f.theta1, d_angle, last);
+    const __m256i b2 = angleBin8(f.theta2, d_angle, last);
+    const __m256i b3 = angleBin8(f.theta3, d_angle, last);
     const __m256 mu_d = _mm256_floor_ps(_mm256_div_ps(d, d_dist));
     __m256i k = _mm256_add_epi32(_mm256_mullo_epi32(_mm256_cvttps_epi32(mu_d), vnA), b1);
     k = _mm256_add_epi32(_mm256_mullo_epi32(k, vnA), b2);
@@ -225,9 +245,7 @@ BINPOSE_AVX2_INLINE void bins8(__m256 value, __m256 step, int n_bins, __m256 ove
 __attribute__((target("avx2"))) void overlapFeatureKeysAvx2(std::size_t i, const Points& points,
                                                             const Points& normals, const KeySpace& keys,
                                                             std::vector<std::uint32_t>& out) {
-  const Vec3 &p = points[i], &n = normals[i];
-  const __m256 px = _mm256_set1_ps(p.x()), py = _mm256_set1_ps(p.y()), pz = _mm256_set1_ps(p.z());
-  const __m256 nx = _mm256_set1_ps(n.x()), ny = _mm256_set1_ps(n.y()), nz = _mm256_set1_ps(n.z());
+  const Point8 o = broadcast8(points[i], normals[i]);
   const QuantizationParams& qp = keys.params();
   const __m256 d_dist = _mm256_set1_ps(qp.d_dist), d_angle = _mm256_set1_ps(qp.d_angle);
   const __m256 d_limit = _mm256_set1_ps(qp.d_dist * static_cast<float>(keys.distanceBins()));
@@ -235,24 +253,13 @@ __attribute__((target("avx2"))) void overlapFeatureKeysAvx2(std::size_t i, const
   const int nA = keys.angleBins(), nD = keys.distanceBins();
   const __m256i vnA = _mm256_set1_epi32(nA);
   const __m256i strides[4] = {_mm256_set1_epi32(nA * nA * nA), _mm256_set1_epi32(nA * nA), vnA, _mm256_set1_epi32(1)};
-  alignas(32) float q[6][8];
   alignas(32) std::int32_t key[8], side[4][8];
   std::uint32_t block[8 * KeySpace::kMaxKeys];  // one step's keys
   std::size_t j0 = 0;
   for (; j0 + 8 <= points.size(); j0 += 8) {
-    for (int l = 0; l < 8; ++l) {  // the 8 partners' points and normals, a lane each
-      const Vec3& m = points[j0 + l];
-      const Vec3& mn = normals[j0 + l];
-      q[0][l] = m.x(), q[1][l] = m.y(), q[2][l] = m.z(), q[3][l] = mn.x(), q[4][l] = mn.y(), q[5][l] = mn.z();
-    }
-    // computeFeature's operations in its order (eq. 2-3), as featureKeysAvx2.
-    const __m256 dx = _mm256_sub_ps(_mm256_load_ps(q[0]), px), dy = _mm256_sub_ps(_mm256_load_ps(q[1]), py),
-                 dz = _mm256_sub_ps(_mm256_load_ps(q[2]), pz);
-    const __m256 d = _mm256_sqrt_ps(dot8(dx, dy, dz, dx, dy, dz));
-    const __m256 ux = _mm256_div_ps(dx, d), uy = _mm256_div_ps(dy, d), uz = _mm256_div_ps(dz, d);
-    const __m256 mx = _mm256_load_ps(q[3]), my = _mm256_load_ps(q[4]), mz = _mm256_load_ps(q[5]);
-    const __m256 value[4] = {d, fastAcos8(dot8(nx, ny, nz, ux, uy, uz)), fastAcos8(dot8(mx, my, mz, ux, uy, uz)),
-                             fastAcos8(dot8(nx, ny, nz, mx, my, mz))};
+    const Features8 f = features8(o, points, normals, [&](int l) { return j0 + static_cast<std::size_t>(l); });
+    const __m256 d = f.d;
+    const __m256 value[4] = {d, f.theta1, f.theta2, f.theta3};
     // overlapKeys (eq. 4-7): the key of the four bins, and each dimension's step to its neighbour.
     __m256i k = _mm256_setzero_si256();
     for (int dim = 0; dim < 4; ++dim) {

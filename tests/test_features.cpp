@@ -28,6 +28,21 @@ QuantizationParams thesisQuantization() {
   q.overlap = 0.15f;
   return q;
 }
+
+/// `count` random oriented points, every tenth far enough out for some pairs to lie beyond a
+/// 60 mm key space; point 17 at point 3's place, and normals 40 and 41 equal and opposite to
+/// point 3's (theta3 = 0 and pi).
+void batchTestPoints(int count, std::uint64_t seed, Points& points, Points& normals) {
+  Rng rng(seed);
+  for (int i = 0; i < count; ++i) {
+    const float reach = i % 10 == 0 ? 90.0f : 40.0f;
+    points.emplace_back(float(reach * rng.uniform()), float(reach * rng.uniform()), float(reach * rng.uniform()));
+    normals.push_back(Vec3(float(rng.uniform() - 0.5), float(rng.uniform() - 0.5), float(rng.uniform() - 0.5)).normalized());
+  }
+  points[17] = points[3];
+  normals[40] = normals[3];
+  normals[41] = -normals[3];
+}
 }  // namespace
 
 TEST(Feature, HandComputedPairs) {
@@ -167,16 +182,8 @@ TEST(Quantization, SceneKeysInBatchesAreTheKeysOneByOne) {
   // same keys in the same order, the voter itself skipped, a partner at the voter's place left
   // out, pairs beyond the key space kInvalid, and a count not a multiple of 8.
   const KeySpace keys(thesisQuantization(), 60.0f);
-  Rng rng(5);
   Points points, normals;
-  for (int i = 0; i < 203; ++i) {
-    const float reach = i % 10 == 0 ? 90.0f : 40.0f;  // some pairs beyond the 60 mm key space
-    points.emplace_back(float(reach * rng.uniform()), float(reach * rng.uniform()), float(reach * rng.uniform()));
-    normals.push_back(Vec3(float(rng.uniform() - 0.5), float(rng.uniform() - 0.5), float(rng.uniform() - 0.5)).normalized());
-  }
-  points[17] = points[3];  // coincides with voter 3
-  normals[40] = normals[3];  // theta3 = 0
-  normals[41] = -normals[3];  // theta3 = pi
+  batchTestPoints(203, 5, points, normals);
   std::vector<std::uint32_t> others(points.size());
   std::iota(others.begin(), others.end(), 0u);
   std::reverse(others.begin(), others.end());
@@ -205,16 +212,8 @@ TEST(Quantization, ModelKeysInBatchesAreTheOverlapKeysOneByOne) {
   // at a time: the same keys in the same order, the point itself skipped, a point at its place
   // left out, pairs beyond the key space without keys, and a count not a multiple of 8.
   const KeySpace keys(thesisQuantization(), 60.0f);
-  Rng rng(7);
   Points points, normals;
-  for (int i = 0; i < 205; ++i) {
-    const float reach = i % 10 == 0 ? 90.0f : 40.0f;  // some pairs beyond the 60 mm key space
-    points.emplace_back(float(reach * rng.uniform()), float(reach * rng.uniform()), float(reach * rng.uniform()));
-    normals.push_back(Vec3(float(rng.uniform() - 0.5), float(rng.uniform() - 0.5), float(rng.uniform() - 0.5)).normalized());
-  }
-  points[17] = points[3];     // coincides with point 3
-  normals[40] = normals[3];   // theta3 = 0
-  normals[41] = -normals[3];  // theta3 = pi
+  batchTestPoints(205, 7, points, normals);
   std::size_t beyond = 0, overlapping = 0;
   for (const std::size_t i : {std::size_t{0}, std::size_t{3}, std::size_t{40}, std::size_t{204}}) {
     std::vector<std::uint32_t> expected, got;
