@@ -203,7 +203,9 @@ bool PointGrid::nearest(const Vec3& q, float max_distance, std::uint32_t& index,
   if (!missed_before)  // as nearest(); a query that found none last time likely finds none nearer
     for (const float radius : {0.5f * cell_, cell_})
       if (max_distance > radius && searchBox(q, radius, radius * radius, index, sq_dist)) return true;
-  // The last box as searchBox, keeping the nearest point seen beyond the limit too.
+  // The last box as searchBox, keeping the nearest point seen beyond the limit too. Kept apart
+  // from searchBox: tracking it there (behind a pointer test) cost every other query, 0.1-0.2%
+  // of detect's instructions on the 16-part bins.
   const Box b = boxAround(q, max_distance);
   const float limit = max_distance * max_distance;
   detail::NearestK best{1, 0, &index, &sq_dist};
