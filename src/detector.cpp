@@ -375,7 +375,7 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   std::optional<SceneEvidence> evidence_slot;
   tbb::parallel_invoke([&] { if (p.remove_planes) scene = withoutPlanes(std::move(scene), p, planes); },
                        [&] {
-                         evidence_slot.emplace(scan.points, scan_grid, p.viewpoint);
+                         evidence_slot.emplace(scan.points, scan_grid, p.viewpoint, &*pixels);
                          evidence_slot->setGrazingAngle(p.grazing_angle);
                        });
   evidence_slot->setBackground(std::move(planes), std::min(p.verify_tolerance, p.plane_tolerance));

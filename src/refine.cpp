@@ -213,7 +213,7 @@ Pose refinePose(const Pose& pose, const Points& model_points, const Points& mode
   return current;
 }
 
-SceneEvidence::SceneEvidence(const Points& scan, const PointGrid& grid, const Vec3& viewpoint)
+SceneEvidence::SceneEvidence(const Points& scan, const PointGrid& grid, const Vec3& viewpoint, const PixelNeighbours* pixels)
     : grid_(grid), viewpoint_(viewpoint), to_view_(Eigen::Matrix3f::Identity()) {
   if (scan.empty()) return;
   Vec3 axis = Vec3::Zero();
@@ -228,7 +228,9 @@ SceneEvidence::SceneEvidence(const Points& scan, const PointGrid& grid, const Ve
   for (std::size_t i = 0; i < scan.size(); i += step) {
     std::uint32_t idx[2];
     float d2[2];
-    if (grid.knn(scan[i], 2, idx, d2) == 2) spacing.push_back(std::sqrt(d2[1]));
+    const auto at = static_cast<std::uint32_t>(i);
+    if ((pixels != nullptr && pixels->knn(at, 2, idx, d2)) || grid.knn(scan[i], 2, idx, d2) == 2)
+      spacing.push_back(std::sqrt(d2[1]));
     depth.push_back((to_view_ * (scan[i] - viewpoint)).z());
   }
   auto median = [](std::vector<float>& v) {
@@ -237,35 +239,35 @@ SceneEvidence::SceneEvidence(const Points& scan, const PointGrid& grid, const Ve
   };
   if (spacing.empty() || !(median(depth) > 0)) return;
   bin_ = 1.5f * std::max(median(spacing), 1e-6f) / median(depth);
+  // Each point's direction (u, v: x / z and y / z in the image frame) and range, once.
+  struct Seen { float u, v, range; };
+  std::vector<Seen> seen;
+  seen.reserve(scan.size());
   float u1 = -INFINITY, v1 = -INFINITY;
   u0_ = v0_ = INFINITY;
   for (const Vec3& p : scan) {
     const Vec3 q = to_view_ * (p - viewpoint);
     if (q.z() <= 0) continue;
-    u0_ = std::min(u0_, q.x() / q.z()); u1 = std::max(u1, q.x() / q.z());
-    v0_ = std::min(v0_, q.y() / q.z()); v1 = std::max(v1, q.y() / q.z());
+    const Seen s{q.x() / q.z(), q.y() / q.z(), q.norm()};
+    u0_ = std::min(u0_, s.u); u1 = std::max(u1, s.u);
+    v0_ = std::min(v0_, s.v); v1 = std::max(v1, s.v);
+    seen.push_back(s);
   }
   if (!(u1 >= u0_)) return;
   bin_ = std::max(bin_, std::sqrt((u1 - u0_) * (v1 - v0_) / 4e6f));  // at most about 4 M cells
   width_ = static_cast<long>((u1 - u0_) / bin_) + 1;
   height_ = static_cast<long>((v1 - v0_) / bin_) + 1;
   nearest_.assign(static_cast<std::size_t>(width_ * height_), INFINITY);
-  for (const Vec3& p : scan) {
-    float range;
-    const long c = cell(p, range);
-    if (c >= 0) nearest_[c] = std::min(nearest_[c], range);
-  }
+  for (const Seen& s : seen)
+    if (const long c = cellAt(s.u, s.v); c >= 0) nearest_[c] = std::min(nearest_[c], s.range);
 }
 
-long SceneEvidence::cell(const Vec3& p, float& range) const {
+long SceneEvidence::cellAt(float u, float v) const {
   if (width_ == 0) return -1;
-  const Vec3 q = to_view_ * (p - viewpoint_);
-  if (q.z() <= 0) return -1;
-  range = q.norm();
-  const auto u = static_cast<long>(std::floor((q.x() / q.z() - u0_) / bin_));
-  const auto v = static_cast<long>(std::floor((q.y() / q.z() - v0_) / bin_));
-  if (u < 0 || v < 0 || u >= width_ || v >= height_) return -1;
-  return v * width_ + u;
+  const auto x = static_cast<long>(std::floor((u - u0_) / bin_));
+  const auto y = static_cast<long>(std::floor((v - v0_) / bin_));
+  if (x < 0 || y < 0 || x >= width_ || y >= height_) return -1;
+  return y * width_ + x;
 }
 
 Evidence SceneEvidence::evaluate(const Pose& pose, const Points& model_points, const Points& model_normals,
@@ -315,9 +317,8 @@ Evidence SceneEvidence::evaluate(const Pose& pose, const Points& model_points, c
         if (!on_bin) verdict[i] = kSupported;
         continue;
       }
-      float range;
-      const long c = this->cell(f.p, range);
-      if (c >= 0 && nearest_[c] > range + 2 * tolerance && std::isfinite(nearest_[c])) verdict[i] = kContradicted;
+      const long c = cellAt(f.u, f.v);
+      if (c >= 0 && nearest_[c] > f.range + 2 * tolerance && std::isfinite(nearest_[c])) verdict[i] = kContradicted;
     }
   });
   Evidence e;

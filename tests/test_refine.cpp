@@ -1,7 +1,9 @@
 // ICP refinement against synthetic views with exact ground truth.
 #include <binpose/model.hpp>
 #include <binpose/refine.hpp>
+#include <binpose/pixel_neighbours.hpp>
 #include <binpose/shapes.hpp>
+#include <binpose/simulation.hpp>
 
 #include "synthetic.hpp"
 #include "test_util.hpp"
@@ -123,6 +125,36 @@ TEST(Evidence, GrazingPointsAreCountedApart) {
   // The side faces lie at 83-84 degrees: at 85 none of them is grazing.
   evidence.setGrazingAngle(85.0f);
   EXPECT_EQ(evidence.evaluate(pose, box.points, box.normals, 1.0f, box.sample_radius).grazing, 0);
+}
+
+// The scan spacing's sample from the depth image's pixel neighbours: the same range image, so
+// the same verdicts, point for point, as with the grid alone.
+TEST(SceneEvidence, PixelNeighboursGiveTheSameEvidenceAsTheGrid) {
+  const Mesh cap = makeCap();
+  const OrientedModel model = prepareModel(cap, ModelParams{});
+  const BinParams bin;
+  const std::vector<Pose> world = dropIntoBin(cap, 6, bin, 1.0f, 5);
+  const SimulatedScene scene = renderBin(cap, world, bin, SensorParams{}, 3);
+  const PixelNeighbours pixels(scene.cloud);
+  ASSERT_TRUE(pixels.usable());
+  const PointGrid grid(scene.cloud.points);
+  const SceneEvidence by_grid(scene.cloud.points, grid, scene.cloud.viewpoint);
+  const SceneEvidence by_pixels(scene.cloud.points, grid, scene.cloud.viewpoint, &pixels);
+  int contradicted = 0;
+  for (const SimulatedInstance& instance : scene.instances)
+    for (const float shift : {0.0f, 4.0f}) {  // the true pose, and one a few mm in front of it
+      Pose pose = instance.pose;
+      pose.translation() -= shift * pose.translation().normalized();
+      std::vector<std::uint32_t> a, b;
+      const Evidence e = by_grid.evaluate(pose, model.points, model.normals, 1.0f, model.sample_radius, &a);
+      const Evidence f = by_pixels.evaluate(pose, model.points, model.normals, 1.0f, model.sample_radius, &b);
+      EXPECT_EQ(e.facing, f.facing);
+      EXPECT_EQ(e.supported, f.supported);
+      EXPECT_EQ(e.contradicted, f.contradicted);
+      EXPECT_EQ(a, b);
+      contradicted += e.contradicted;
+    }
+  EXPECT_GT(contradicted, 0);  // the range image was asked
 }
 
 }  // namespace
