@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <fmt/format.h>
+#include <tbb/parallel_for.h>
 
 namespace binpose {
 namespace {
@@ -101,6 +102,8 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
   Rng rng(params.seed);
   std::vector<std::uint32_t> left, probe, inliers;
   Probe probe_points;
+  std::vector<Plane> hypotheses;
+  std::vector<std::size_t> counts;
   for (int round = 0; round < params.max_planes; ++round) {
     left.clear();
     for (std::uint32_t i = 0; i < points.size(); ++i)
@@ -111,17 +114,24 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
     const std::size_t step = std::max<std::size_t>(1, left.size() / 1000);
     for (std::size_t k = 0; k < left.size(); k += step) probe.push_back(left[k]);
     probe_points.assign(points, normals, probe);
-    std::size_t best_count = 0;
-    Plane best;
+    // The hypotheses drawn in turn, scored side by side, the first of the highest score kept.
+    hypotheses.clear();
     for (int t = 0; t < params.trials; ++t) {
       const std::uint32_t s = left[rng.below(left.size())];
-      const Plane hypothesis{normals[s], normals[s].dot(points[s])};
-      const std::size_t count = countOnPlane(probe_points, hypothesis, params.tolerance, min_cos);
-      if (count > best_count) {
-        best_count = count;
-        best = hypothesis;
-      }
+      hypotheses.push_back({normals[s], normals[s].dot(points[s])});
     }
+    counts.resize(hypotheses.size());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, hypotheses.size(), 32), [&](const auto& range) {
+      for (std::size_t t = range.begin(); t < range.end(); ++t)
+        counts[t] = countOnPlane(probe_points, hypotheses[t], params.tolerance, min_cos);
+    });
+    std::size_t best_count = 0;
+    Plane best;
+    for (std::size_t t = 0; t < hypotheses.size(); ++t)
+      if (counts[t] > best_count) {
+        best_count = counts[t];
+        best = hypotheses[t];
+      }
     inliers.clear();
     for (const auto i : left)
       if (onPlane(points[i], normals[i], best, params.tolerance, min_cos)) inliers.push_back(i);
