@@ -8,6 +8,7 @@
 #include <cmath>
 #include <fmt/format.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_group.h>
 
 namespace binpose {
 namespace {
@@ -104,10 +105,21 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
   Probe probe_points;
   std::vector<Plane> hypotheses;
   std::vector<std::size_t> counts;
+  // A background plane's inliers split into patches (a flood fill, a third of the search's
+  // time) while the next rounds look for planes: the next round's points do not depend on it
+  // (every inlier is tried, whatever patch it falls in), and rounds' inliers are disjoint.
+  struct Background {
+    Plane plane;
+    std::vector<std::uint32_t> inliers;
+    bool taken = false;
+  };
+  std::vector<Background> background;
+  background.reserve(static_cast<std::size_t>(std::max(0, params.max_planes)));  // no move under a running task
+  tbb::task_group flood;
   for (int round = 0; round < params.max_planes; ++round) {
     left.clear();
     for (std::uint32_t i = 0; i < points.size(); ++i)
-      if (!plane[i] && !tried[i]) left.push_back(i);
+      if (!tried[i]) left.push_back(i);
     if (left.size() < min_count) break;
     // Hypotheses scored on an even sample of at most 1000 of the points left.
     probe.clear();
@@ -140,14 +152,19 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
     std::size_t behind = 0;
     for (const Vec3& p : points) behind += best.normal.dot(p) - best.d < -3.0f * params.tolerance;
     if (static_cast<float>(behind) > params.max_behind * static_cast<float>(points.size())) continue;  // not background
-    bool taken = false;
-    for (const auto& patch : patches(points, inliers, params.link))
-      if (patch.size() >= min_count) {
-        for (const auto i : patch) plane[i] = 1;
-        taken = true;
-      }
-    if (taken && removed) removed->push_back(best);
+    Background* b = &background.emplace_back(Background{best, inliers, false});
+    flood.run([&, b] {
+      for (const auto& patch : patches(points, b->inliers, params.link))
+        if (patch.size() >= min_count) {
+          for (const auto i : patch) plane[i] = 1;
+          b->taken = true;
+        }
+    });
   }
+  flood.wait();
+  if (removed)
+    for (const Background& b : background)
+      if (b.taken) removed->push_back(b.plane);
   return plane;
 }
 
