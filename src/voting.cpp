@@ -337,28 +337,32 @@ void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t
 
 void Voter::select(std::uint32_t k, std::vector<Correspondence>& out) {
   // A_k is the model points with a vote (eq. 9-10): its histogram is the accumulator's without
-  // the zeros. Four histograms side by side, so that runs of equal votes do not wait on each other.
+  // the zeros. Eight histograms side by side, so that runs of equal votes do not wait on each
+  // other (four: BM_LocalVotes 65.3-69.0 ms; eight: 64.1-65.4).
   const std::span<const std::uint16_t> votes(votes_.data(), counters_);
   const std::uint16_t top = largestVote(votes);
   if (top == 0) return;
   const std::size_t bins = std::size_t{top} + 1;
-  histogram_.assign(4 * bins, 0);
+  histogram_.assign(8 * bins, 0);
   // Through plain pointers, one per histogram: indexing the vector by lane took 1.7x as long.
-  std::uint32_t* const h0 = histogram_.data();
-  std::uint32_t* const h1 = h0 + bins;
-  std::uint32_t* const h2 = h1 + bins;
-  std::uint32_t* const h3 = h2 + bins;
+  std::uint32_t* h[8];
+  for (std::size_t l = 0; l < 8; ++l) h[l] = histogram_.data() + l * bins;
   const std::uint16_t* const v = votes.data();
   const std::size_t n = votes.size();
   std::size_t id = 0;
-  for (; id + 4 <= n; id += 4) {
-    ++h0[v[id]];
-    ++h1[v[id + 1]];
-    ++h2[v[id + 2]];
-    ++h3[v[id + 3]];
+  for (; id + 8 <= n; id += 8) {
+    ++h[0][v[id]];
+    ++h[1][v[id + 1]];
+    ++h[2][v[id + 2]];
+    ++h[3][v[id + 3]];
+    ++h[4][v[id + 4]];
+    ++h[5][v[id + 5]];
+    ++h[6][v[id + 6]];
+    ++h[7][v[id + 7]];
   }
-  for (; id < n; ++id) ++h0[v[id]];
-  for (std::size_t b = 0; b < bins; ++b) h0[b] += h1[b] + h2[b] + h3[b];
+  for (; id < n; ++id) ++h[0][v[id]];
+  for (std::size_t b = 0; b < bins; ++b)
+    h[0][b] += h[1][b] + h[2][b] + h[3][b] + h[4][b] + h[5][b] + h[6][b] + h[7][b];
   histogram_[0] = 0;
   const double limit = outlierLimit(std::span<const std::uint32_t>(histogram_.data(), bins));
   if (!(top > limit)) return;  // eq. 11: no upper outlier, no candidate

@@ -101,7 +101,7 @@ class Voter {
   std::vector<std::uint16_t> votes_;      ///< A_k, one counter per model point (or orbit), zeros after to a 256 multiple
   std::vector<const std::uint64_t*> dense_lists_;  ///< one point's long lists' bitsets, each as often as it adds
   bool bitsets_;                          ///< long lists counted by bitset (where the CPU has AVX2)
-  std::vector<std::uint32_t> histogram_;  ///< the accumulator's histogram (four side by side)
+  std::vector<std::uint32_t> histogram_;  ///< the accumulator's histogram (eight side by side)
   std::vector<std::size_t> outliers_;     ///< model points whose votes are upper outliers
   const Orbits* orbits_;                  ///< a body of revolution's (votes_ then per orbit)
   const Orbits* classes_;                 ///< a cyclic symmetry's: candidates are class members
