@@ -8,6 +8,7 @@
 #include <tbb/global_control.h>
 
 #include <algorithm>
+#include <bit>
 #include <numeric>
 #include <set>
 
@@ -114,6 +115,45 @@ TEST(Database, RefusesCorruptTruncatedAndForeignFiles) {
   magic[0] = 'X';
   EXPECT_NE(refusal(magic).find("bad magic"), std::string::npos);
   EXPECT_NE(refusal("ply\nformat ascii 1.0\n").find("bad magic"), std::string::npos);
+}
+
+TEST(Database, LoadChecksMultiMegabyteFilesAndIndexesTheirDenseLists) {
+  // A file of several MiB: its checksum is taken in 1 MiB pieces, joined in order; a file written
+  // with one CRC over all its bytes must load, and a byte changed in any piece must not.
+  const ModelDatabase db = ModelDatabase::build(smallModel(1500), defaultQuantization(30.0f));
+  const std::string path = test::tempPath("large.bpdb");
+  db.save(path);
+  const std::string good = test::readAll(path);
+  ASSERT_GT(good.size(), std::size_t{3} << 20);
+  const ModelDatabase back = ModelDatabase::load(path);
+  expectSameTable(db, back);
+  // Each list of denseListSize() points or more also as a bitset holding exactly its points.
+  std::size_t dense = 0;
+  for (std::uint32_t k = 0; k < back.keySpace().size(); ++k) {
+    const auto ids = back.lookup(k);
+    const auto bits = back.denseBits(k);
+    ASSERT_EQ(bits.empty(), ids.size() < back.denseListSize()) << "key " << k;
+    if (bits.empty()) continue;
+    ++dense;
+    std::vector<std::uint16_t> set;
+    for (std::size_t w = 0; w < bits.size(); ++w)
+      for (std::uint64_t word = bits[w]; word != 0; word &= word - 1)
+        set.push_back(static_cast<std::uint16_t>(64 * w + std::countr_zero(word)));
+    ASSERT_TRUE(std::equal(set.begin(), set.end(), ids.begin(), ids.end())) << "key " << k;
+  }
+  EXPECT_GT(dense, 0u);
+  for (const std::size_t at : {std::size_t{100}, good.size() / 2, good.size() - 10}) {
+    std::string bad = good;
+    bad[at] ^= 0x21;
+    const std::string bad_path = test::tempPath("large_bad.bpdb");
+    test::writeAll(bad_path, bad);
+    try {
+      ModelDatabase::load(bad_path);
+      ADD_FAILURE() << "a byte changed at " << at << " was not noticed";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("corrupt"), std::string::npos) << e.what();
+    }
+  }
 }
 
 TEST(Database, RefusesBadModels) {
