@@ -282,6 +282,30 @@ Voter::Voter(const ModelDatabase& db, int keep, std::uint32_t max_list, float sp
 
 void Voter::useBitsets(bool on) { bitsets_ = on && orbits_ == nullptr && detail::haveAvx2(); }
 
+void Voter::groupKeys() {
+  // Open addressing on a table of at least twice as many slots as keys, each slot the key's
+  // place in distinct_ (kEmpty: none); used slots are emptied again at the end. The votes are
+  // sums, so the keys' order does not matter, only that equal keys are counted together
+  // (std::sort did this before, 2-3% of the detection's time).
+  constexpr std::uint32_t kEmpty = ~std::uint32_t{0};
+  distinct_.clear();
+  const std::size_t size = std::bit_ceil(std::max<std::size_t>(64, 2 * keys_.size()));
+  if (slots_.size() < size) slots_.assign(size, kEmpty);
+  const std::size_t mask = slots_.size() - 1;
+  const int shift = 32 - std::countr_zero(slots_.size());
+  for (const std::uint32_t key : keys_) {
+    std::size_t h = (key * 0x9E3779B1u) >> shift;  // Fibonacci hashing: the product's top bits
+    while (slots_[h] != kEmpty && distinct_[slots_[h]].key != key) h = (h + 1) & mask;
+    if (slots_[h] == kEmpty) {
+      slots_[h] = static_cast<std::uint32_t>(distinct_.size());
+      distinct_.push_back({key, 1, static_cast<std::uint32_t>(h)});
+    } else {
+      ++distinct_[slots_[h]].count;
+    }
+  }
+  for (const Distinct& d : distinct_) slots_[d.slot] = kEmpty;
+}
+
 void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t k,
                       std::span<const std::uint32_t> partners, std::vector<Correspondence>& out) {
   const KeySpace& keys = db_.keySpace();
@@ -289,7 +313,7 @@ void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t
   // same key (pairs on one plane, say) are counted together: the same sums, fewer increments.
   keys_.clear();
   featureKeys(points[k], normals[k], points, normals, partners, k, keys, keys_);
-  std::sort(keys_.begin(), keys_.end());
+  groupKeys();
   lists_.clear();
   // With weights, no 16-bit count can overflow: each feature adds at most 65535 / features.
   const std::size_t n_model = db_.model().points.size();
@@ -297,20 +321,20 @@ void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t
   const auto most = static_cast<std::uint32_t>(weigh_rare_ ? std::max<std::size_t>(1, 65535 / features) : 1);
   // The keys' table entries are fetched kKeysAhead keys before they are read.
   constexpr std::size_t kKeysAhead = 16;
-  for (std::size_t a = 0; a < std::min(kKeysAhead, keys_.size()); ++a) db_.prefetch(keys_[a]);
-  for (std::size_t a = 0, b = 0; a < keys_.size(); a = b) {
-    while (b < keys_.size() && keys_[b] == keys_[a]) ++b;
-    if (b + kKeysAhead < keys_.size()) db_.prefetch(keys_[b + kKeysAhead]);
-    const auto ids = db_.lookup(keys_[a]);
+  for (std::size_t a = 0; a < std::min(kKeysAhead, distinct_.size()); ++a) db_.prefetch(distinct_[a].key);
+  for (std::size_t a = 0; a < distinct_.size(); ++a) {
+    if (a + kKeysAhead < distinct_.size()) db_.prefetch(distinct_[a + kKeysAhead].key);
+    const std::uint32_t key = distinct_[a].key;
+    const auto ids = db_.lookup(key);
     if (ids.empty() || ids.size() > max_list_) continue;  // a feature nearly every model point has: no information
     const std::uint32_t weight = weigh_rare_ ? std::min(most, keyWeight(n_model, ids.size())) : 1;
-    const auto times = static_cast<std::uint16_t>((b - a) * weight);
+    const auto times = static_cast<std::uint16_t>(distinct_[a].count * weight);
     if (orbits_ != nullptr) {
-      lists_.push_back({orbits_->lookup(keys_[a]), times});  // the orbits of those points
+      lists_.push_back({orbits_->lookup(key), times});  // the orbits of those points
       continue;
     }
     // A long list as its bitset, once per vote it adds (rarely more than once).
-    const auto bits = bitsets_ && times <= kMostBitsetRepeats ? db_.denseBits(keys_[a]) : std::span<const std::uint64_t>{};
+    const auto bits = bitsets_ && times <= kMostBitsetRepeats ? db_.denseBits(key) : std::span<const std::uint64_t>{};
     if (bits.empty()) {
       lists_.push_back({ids, times});
       continue;

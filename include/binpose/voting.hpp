@@ -90,6 +90,13 @@ class Voter {
   std::uint32_t max_list_;
   float spacing_;
   std::vector<std::uint32_t> keys_;       ///< the keys of one point's features
+  struct Distinct {
+    std::uint32_t key, count, slot;  ///< a key, how many of the features have it, its slot in slots_
+  };
+  std::vector<Distinct> distinct_;        ///< keys_'s distinct keys, in the order first seen
+  std::vector<std::uint32_t> slots_;      ///< groupKeys's hash table (all empty between calls)
+  /// Gathers keys_ into distinct_.
+  void groupKeys();
   struct List {
     std::span<const ModelDatabase::PointId> ids;
     std::uint16_t times;  ///< votes it adds: features of the point with this key (times their weight)
