@@ -397,7 +397,7 @@ TEST(Voting, BitsetCountingGivesTheSameCandidates) {
 
 TEST(Voting, VoterSelectsTheUpperOutliersOfItsCounts) {
   // Each point's accumulator counted here, one feature at a time from the table's lists (eq. 9),
-  // and its candidates chosen by selectCandidates (eq. 10-12): the Voter's (sorted keys, bitsets,
+  // and its candidates chosen by selectCandidates (eq. 10-12): the Voter's (equal keys grouped, bitsets,
   // vector scans of the accumulator) must be the same.
   const auto [points, normals, group] = wholePart(31);
   const ModelDatabase& db = lDatabase();
