@@ -453,6 +453,41 @@ TEST(Voting, CandidateSpacingKeepsTheBestAndSpreadsTheRest) {
   EXPECT_GT(bunched, 0) << "without spacing no candidates were close: this test would not see the spacing work";
 }
 
+TEST(Voting, CandidateSpacingTakesTheOutliersBestFirst) {
+  // The spaced candidates against a reference: each point's accumulator counted feature by
+  // feature, all its upper outliers ordered by votes (ties by index, selectCandidates), then
+  // each taken unless one taken before lies within the spacing, until 12 are taken.
+  const auto [points, normals, group] = wholePart(31);
+  const ModelDatabase& db = lDatabase();
+  const Points& model = db.model().points;
+  constexpr float kSpacing = 3.0f;
+  constexpr int kKeep = 12;
+  Voter spread(db, kKeep, UINT32_MAX, kSpacing);
+  int spaced_out = 0;
+  for (std::uint32_t k = 0; k < points.size(); k += 5) {
+    std::vector<std::uint32_t> counts(model.size(), 0);
+    for (const std::uint32_t o : group) {
+      PairFeature f;
+      if (o == k || !computeFeature(points[k], normals[k], points[o], normals[o], f)) continue;
+      for (const auto m : db.lookup(db.keySpace().key(f))) ++counts[m];
+    }
+    const std::vector<std::size_t> ranked = selectCandidates(counts, static_cast<int>(model.size()));
+    std::vector<std::uint32_t> expected;
+    for (const std::size_t m : ranked) {
+      if (expected.size() == static_cast<std::size_t>(kKeep)) break;
+      const bool near = std::any_of(expected.begin(), expected.end(),
+                                    [&](std::uint32_t e) { return (model[e] - model[m]).squaredNorm() < kSpacing * kSpacing; });
+      spaced_out += near;
+      if (!near) expected.push_back(static_cast<std::uint32_t>(m));
+    }
+    std::vector<Correspondence> got;
+    spread.votePoint(points, normals, k, group, got);
+    ASSERT_EQ(got.size(), expected.size()) << k;
+    for (std::size_t c = 0; c < got.size(); ++c) EXPECT_EQ(got[c].model, expected[c]) << k << " rank " << c;
+  }
+  EXPECT_GT(spaced_out, 0) << "no outlier was spaced out: this test would not see the order matter";
+}
+
 TEST(Voting, LocalVotesPointAtTheTrueModelPoints) {
   Points points, normals;
   Rng rng(5);
