@@ -1,6 +1,7 @@
 // Accumulator voting and fourth-spread selection (thesis 4.3-4.4).
 #include <binpose/voting.hpp>
 
+#include <binpose/geometry.hpp>
 #include <binpose/symmetry.hpp>
 
 #include "simd.hpp"
@@ -10,7 +11,6 @@
 #include <bit>
 #include <cstring>
 #include <numeric>
-#include <utility>
 #include <fmt/format.h>
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
@@ -414,18 +414,18 @@ void Voter::select(std::uint32_t k, std::vector<Correspondence>& out) {
   const std::size_t first = out.size();
   const auto better = moreVotes(value);
   const std::size_t batch = 4 * static_cast<std::size_t>(keep_);
-  // Votes are whole and lie in (above, top]: when that range is short, a counting sort by votes
-  // (most first; outliers_ holds ascending indices, and the sort is stable) gives moreVotes's
-  // order at once, where partial_sort's comparisons took a fifth of select().
+  // Votes are whole and lie in (above, top]: when that range is short, sortByCell's counting
+  // sort over top - votes (most first; outliers_ holds ascending indices, and the sort keeps
+  // their order) gives moreVotes's order at once, where partial_sort's comparisons took a fifth
+  // of select().
   const std::size_t range = std::size_t{top} - above;
   std::size_t sorted = 0;
   if (range <= 2 * outliers_.size() + 64) {
-    bucket_.assign(range + 1, 0);
-    for (const std::size_t m : outliers_) ++bucket_[top - votes_[m]];  // bucket 0: the most votes
-    std::uint32_t at = 0;
-    for (auto& b : bucket_) at += std::exchange(b, at);
+    rank_.resize(outliers_.size());
+    for (std::size_t r = 0; r < outliers_.size(); ++r) rank_[r] = top - votes_[outliers_[r]];
+    sortByCell(rank_, range, bucket_, order_);
     by_votes_.resize(outliers_.size());
-    for (const std::size_t m : outliers_) by_votes_[bucket_[top - votes_[m]]++] = m;
+    for (std::size_t r = 0; r < order_.size(); ++r) by_votes_[r] = outliers_[order_[r]];
     outliers_.swap(by_votes_);
     sorted = outliers_.size();
   }

@@ -111,7 +111,7 @@ class Voter {
   std::vector<std::uint32_t> histogram_;  ///< the accumulator's histogram (eight side by side)
   std::vector<std::size_t> outliers_;     ///< model points whose votes are upper outliers
   std::vector<std::size_t> by_votes_;     ///< the same, most votes first (select's counting sort)
-  std::vector<std::uint32_t> bucket_;     ///< select's counting sort's buckets
+  std::vector<std::uint32_t> rank_, bucket_, order_;  ///< select's counting sort: keys, offsets, order
   const Orbits* orbits_;                  ///< a body of revolution's (votes_ then per orbit)
   const Orbits* classes_;                 ///< a cyclic symmetry's: candidates are class members
 };
