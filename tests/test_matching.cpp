@@ -349,6 +349,17 @@ WholePart wholePart(std::uint64_t seed) {
   std::iota(part.group.begin(), part.group.end(), 0u);
   return part;
 }
+
+/// Point k's accumulator (eq. 9) counted here, one feature at a time from the table's lists.
+std::vector<std::uint32_t> countedVotes(const ModelDatabase& db, const WholePart& part, std::uint32_t k) {
+  std::vector<std::uint32_t> counts(db.model().points.size(), 0);
+  for (const std::uint32_t o : part.group) {
+    PairFeature f;
+    if (o == k || !computeFeature(part.points[k], part.normals[k], part.points[o], part.normals[o], f)) continue;
+    for (const auto m : db.lookup(db.keySpace().key(f))) ++counts[m];
+  }
+  return counts;
+}
 }  // namespace
 
 TEST(Voting, ParallelVoterGivesTheSequentialPairs) {
@@ -399,18 +410,14 @@ TEST(Voting, VoterSelectsTheUpperOutliersOfItsCounts) {
   // Each point's accumulator counted here, one feature at a time from the table's lists (eq. 9),
   // and its candidates chosen by selectCandidates (eq. 10-12): the Voter's (equal keys grouped, bitsets,
   // vector scans of the accumulator) must be the same.
-  const auto [points, normals, group] = wholePart(31);
+  const WholePart part = wholePart(31);
+  const auto& [points, normals, group] = part;
   const ModelDatabase& db = lDatabase();
   for (const int keep : {1, 12}) {
     Voter voter(db, keep);
     int with_candidates = 0;
     for (std::uint32_t k = 0; k < points.size(); k += 5) {
-      std::vector<std::uint32_t> counts(db.model().points.size(), 0);
-      for (const std::uint32_t o : group) {
-        PairFeature f;
-        if (o == k || !computeFeature(points[k], normals[k], points[o], normals[o], f)) continue;
-        for (const auto m : db.lookup(db.keySpace().key(f))) ++counts[m];
-      }
+      const std::vector<std::uint32_t> counts = countedVotes(db, part, k);
       std::vector<std::size_t> expected = selectCandidates(counts, keep);
       if (keep > 1) {  // selectCandidates gives them best first; with keep 1, the ties in index order
         ASSERT_TRUE(std::is_sorted(expected.begin(), expected.end(),
@@ -457,7 +464,8 @@ TEST(Voting, CandidateSpacingTakesTheOutliersBestFirst) {
   // The spaced candidates against a reference: each point's accumulator counted feature by
   // feature, all its upper outliers ordered by votes (ties by index, selectCandidates), then
   // each taken unless one taken before lies within the spacing, until 12 are taken.
-  const auto [points, normals, group] = wholePart(31);
+  const WholePart part = wholePart(31);
+  const auto& [points, normals, group] = part;
   const ModelDatabase& db = lDatabase();
   const Points& model = db.model().points;
   constexpr float kSpacing = 3.0f;
@@ -465,12 +473,7 @@ TEST(Voting, CandidateSpacingTakesTheOutliersBestFirst) {
   Voter spread(db, kKeep, UINT32_MAX, kSpacing);
   int spaced_out = 0;
   for (std::uint32_t k = 0; k < points.size(); k += 5) {
-    std::vector<std::uint32_t> counts(model.size(), 0);
-    for (const std::uint32_t o : group) {
-      PairFeature f;
-      if (o == k || !computeFeature(points[k], normals[k], points[o], normals[o], f)) continue;
-      for (const auto m : db.lookup(db.keySpace().key(f))) ++counts[m];
-    }
+    const std::vector<std::uint32_t> counts = countedVotes(db, part, k);
     const std::vector<std::size_t> ranked = selectCandidates(counts, static_cast<int>(model.size()));
     std::vector<std::uint32_t> expected;
     for (const std::size_t m : ranked) {

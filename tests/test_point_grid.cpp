@@ -24,6 +24,12 @@ Points scanLike() {
   return points;
 }
 
+/// A query within `spread` / 2 per axis of a random point of the cloud.
+Vec3 queryNear(const Points& points, Rng& rng, float spread) {
+  return points[rng.below(points.size())] + spread * Vec3(float(rng.uniform()) - 0.5f, float(rng.uniform()) - 0.5f,
+                                                          float(rng.uniform()) - 0.5f);
+}
+
 }  // namespace
 
 TEST(PointGrid, KnnEqualsBruteForceTiesIncluded) {
@@ -56,8 +62,7 @@ TEST(PointGrid, NearestWithinEqualsBruteForce) {
   Rng rng(11);
   int found = 0, missed = 0;
   for (int t = 0; t < 2000; ++t) {
-    const Vec3 q = points[rng.below(points.size())] + 4.0f * Vec3(float(rng.uniform()) - 0.5f, float(rng.uniform()) - 0.5f,
-                                                                  float(rng.uniform()) - 0.5f);
+    const Vec3 q = queryNear(points, rng, 4.0f);
     const float gate = 0.25f + 3.0f * float(rng.uniform());
     const auto truth = test::bruteKnn(points, q, 1);
     const bool within = truth[0].first <= gate * gate;
@@ -86,8 +91,7 @@ TEST(PointGrid, AMissReportsAClearanceFreeOfPoints) {
     Rng rng(13);
     int missed = 0, beyond_gate = 0;
     for (int t = 0; t < 1500; ++t) {
-      const Vec3 q = points[rng.below(points.size())] + 8.0f * Vec3(float(rng.uniform()) - 0.5f, float(rng.uniform()) - 0.5f,
-                                                                    float(rng.uniform()) - 0.5f);
+      const Vec3 q = queryNear(points, rng, 8.0f);
       const float gate = 0.25f + 3.0f * float(rng.uniform());
       const auto truth = test::bruteKnn(points, q, 1);
       std::uint32_t j0 = 0, j = 0;
