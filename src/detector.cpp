@@ -63,6 +63,7 @@ struct GroupOutcome {
   std::vector<Pose> poses;                 ///< the clique's closed-form pose, then its alternatives
                                            ///< (a body of revolution's other axis sign)
   bool screened_out = false;               ///< the pose failed the pre-screen
+  bool pending = false;                    ///< a pose not seen when it ran, not verified yet (Matcher::verify)
   bool all_voters = false;                 ///< every member's candidates taken, not only the voters'
   int largest_clique = 0;                  ///< size of the first clique searched (0: none searched)
   Hypothesis hypothesis;                   ///< refined and scored (when the clique gave a pose that passed)
@@ -104,20 +105,27 @@ struct Matcher {
   std::function<bool(const Pose&)> seen;
 
   /// Votes (4.3-4.4), clique (4.5), pose (4.6), pre-screen, ICP and score of one sub-group,
-  /// with the scene points not yet removed. A clique whose pose (or one of its alternatives) is
-  /// seen() is not verified: it stays so when taken. The pose, ICP and score depend on the clique's
-  /// pairs alone: when `earlier` (a run of the same sub-group with more points) found the same
+  /// with the scene points not yet removed: prepare(), then verify() when it asks for it.
+  void run(std::span<const std::uint32_t> group, const std::vector<char>& removed, Slot& s, bool all_voters,
+           const GroupOutcome* earlier = nullptr, ParallelVoter* parallel = nullptr) const {
+    if (prepare(group, removed, s, all_voters, earlier, parallel)) verify(s);
+  }
+
+  /// Votes, clique and pose of one sub-group; true when its pose is to be verified (the outcome
+  /// is then `pending`). A clique whose pose (or one of its alternatives) is seen() is not
+  /// verified: it stays so when taken. The pose, ICP and score depend on the clique's pairs
+  /// alone: when `earlier` (a run of the same sub-group with more points) verified the same
   /// clique, its verdict is taken instead of verifying again. `parallel`: votes with it instead
   /// of the slot's voter, on all cores (a sub-group run again on its own). `all_voters`: with
   /// local votes, the candidates of every member (which must all have voted), not only of the
   /// voters of voter_spacing.
-  void run(std::span<const std::uint32_t> group, const std::vector<char>& removed, Slot& s, bool all_voters,
-           const GroupOutcome* earlier = nullptr, ParallelVoter* parallel = nullptr) const {
+  bool prepare(std::span<const std::uint32_t> group, const std::vector<char>& removed, Slot& s, bool all_voters,
+               const GroupOutcome* earlier = nullptr, ParallelVoter* parallel = nullptr) const {
     GroupOutcome& out = s.outcome;
     out.members.clear();
     out.clique.clear();
     out.poses.clear();
-    out.ran = out.screened_out = false;
+    out.ran = out.screened_out = out.pending = false;
     out.all_voters = all_voters;
     out.largest_clique = 0;
     out.hypothesis = {};
@@ -125,7 +133,7 @@ struct Matcher {
     out.vote_ms = out.match_ms = out.refine_ms = 0;
     for (const auto i : group)
       if (!removed[i]) out.members.push_back(i);
-    if (out.members.size() < static_cast<std::size_t>(p.C_n)) return;
+    if (out.members.size() < static_cast<std::size_t>(p.C_n)) return false;
     out.ran = true;
     const auto t_vote = Clock::now();
     s.candidates.clear();
@@ -133,7 +141,7 @@ struct Matcher {
       // The second pass (retry_all_voters): nothing new when the other points have no candidate.
       if (all_voters && std::none_of(out.members.begin(), out.members.end(),
                                      [&](std::uint32_t i) { return may_vote[i] == 0 && !local->candidates(i).empty(); }))
-        return;
+        return false;
       for (const auto i : out.members)
         if (all_voters || may_vote[i] != 0)  // the others' votes, if any, are for the second pass
           for (const auto m : local->candidates(i)) s.candidates.push_back({i, m});
@@ -144,21 +152,26 @@ struct Matcher {
     }
     const auto t_match = Clock::now();
     out.vote_ms = msSince(t_vote);
-    if (!match(s)) {
-      out.match_ms = msSince(t_match);
-      return;
-    }
-    const auto t_refine = Clock::now();
+    const bool matched = match(s);
     out.match_ms = msSince(t_match);
-    if (p.verify && std::any_of(out.poses.begin(), out.poses.end(), seen)) return;  // still seen when taken
-    if (earlier != nullptr && earlier->clique == out.clique) {
+    if (!matched) return false;
+    if (p.verify && std::any_of(out.poses.begin(), out.poses.end(), seen)) return false;  // still seen when taken
+    if (earlier != nullptr && !earlier->pending && earlier->clique == out.clique) {
       out.screened_out = earlier->screened_out;
       out.hypothesis = earlier->hypothesis;
       out.score_without_grazing = earlier->score_without_grazing;
-      return;
+      return false;
     }
-    verify(s);
-    out.refine_ms = msSince(t_refine);
+    out.pending = true;
+    return true;
+  }
+
+  /// Pre-screen, ICP and score of a pending outcome's pose.
+  void verify(Slot& s) const {
+    const auto t_refine = Clock::now();
+    screenRefineScore(s);
+    s.outcome.pending = false;
+    s.outcome.refine_ms = msSince(t_refine);
   }
 
  private:
@@ -216,7 +229,7 @@ struct Matcher {
   }
 
   /// Pre-screen, ICP and score of the outcome's pose.
-  void verify(Slot& s) const {
+  void screenRefineScore(Slot& s) const {
     Hypothesis& h = s.outcome.hypothesis;
     Detection& det = h.detection;
     // A pose of the second pass (retry_all_voters) is screened as it will be judged: by its score
@@ -466,6 +479,25 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   std::vector<std::uint32_t> voters;
   double work_ms = 0, group_vote_ms = 0, group_match_ms = 0, group_refine_ms = 0;  // see below
   std::vector<int> largest_clique(groups.size(), 0);  // each sub-group's first clique (for the second pass)
+  // The batch's pending poses to verify side by side. A pose near one that a sub-group earlier
+  // in the batch found is most likely that object again: once the earlier one is taken, its
+  // points are removed (the sub-group runs again) or its pose is found or tried (this one is
+  // seen). Its verification waits until it is taken, and is skipped then if so. On ipd8-16 such
+  // verifications were half of the work that the batch's later removals wasted.
+  std::vector<std::size_t> to_verify;  // slots
+  auto deferPosesNearEarlier = [&](std::size_t next, std::size_t end) {
+    to_verify.clear();
+    for (std::size_t g = next; g < end; ++g) {
+      const GroupOutcome& o = slots[g - next].outcome;
+      if (!o.pending) continue;
+      const auto near = [&](const Pose& pose) {
+        return std::any_of(slots.begin(), slots.begin() + static_cast<long>(g - next), [&](const Slot& e) {
+          return std::any_of(e.outcome.poses.begin(), e.outcome.poses.end(), [&](const Pose& q) { return samePose(pose, q); });
+        });
+      };
+      if (!p.verify || !std::any_of(o.poses.begin(), o.poses.end(), near)) to_verify.push_back(g - next);
+    }
+  };
   // The sub-groups of `order`, a batch at a time (see above).
   auto runGroups = [&](const std::vector<std::uint32_t>& order, bool all_voters) {
     for (std::size_t next = 0; next < order.size() && !enough; next += batch) {
@@ -479,11 +511,16 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
         vote_ms += msSince(t_vote);
       }
       const auto t_work = Clock::now();
+      // Isolated: a thread waiting inside a nested loop (graph, ICP) takes up no other sub-group
+      // meanwhile, which would hold up its own.
       tbb::parallel_for(tbb::blocked_range<std::size_t>(next, end, 1), [&](const tbb::blocked_range<std::size_t>& range) {
-        // Isolated: a thread waiting inside a nested loop (graph, ICP) takes up no other sub-group
-        // meanwhile, which would hold up its own.
         for (std::size_t g = range.begin(); g < range.end(); ++g)
-          tbb::this_task_arena::isolate([&] { matcher.run(groups[order[g]], removed, slots[g - next], all_voters); });
+          tbb::this_task_arena::isolate([&] { matcher.prepare(groups[order[g]], removed, slots[g - next], all_voters); });
+      }, tbb::simple_partitioner());
+      deferPosesNearEarlier(next, end);
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, to_verify.size(), 1), [&](const tbb::blocked_range<std::size_t>& range) {
+        for (std::size_t k = range.begin(); k < range.end(); ++k)
+          tbb::this_task_arena::isolate([&] { matcher.verify(slots[to_verify[k]]); });
       }, tbb::simple_partitioner());
       work_ms += msSince(t_work);
       for (std::size_t g = next; g < end && !enough; ++g) {
@@ -493,6 +530,10 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
           std::swap(earlier, slot.outcome);
           matcher.run(groups[order[g]], removed, slot, all_voters, &earlier, &parallel);
           work_ms += msSince(t_again);
+        } else if (slot.outcome.pending && !std::any_of(slot.outcome.poses.begin(), slot.outcome.poses.end(), seen)) {
+          const auto t_late = Clock::now();  // deferred, and not the object found meanwhile after all
+          matcher.verify(slot);
+          work_ms += msSince(t_late);
         }
         group_vote_ms += slot.outcome.vote_ms;
         group_match_ms += slot.outcome.match_ms;

@@ -188,9 +188,11 @@ TEST(Detector, SameResultWhateverTheThreadCount) {
 }
 
 // Sub-groups run side by side in batches whose size follows the thread count; a sub-group
-// that a detection of its batch took points from runs again. A simulated bin of sixteen caps
-// makes that happen and change what those sub-groups find: the counts and poses must still be
-// those of one thread, `fast`'s second pass (retry_all_voters) included.
+// that a detection of its batch took points from runs again, and a pose near one found earlier
+// in the batch is verified only when taken, if still needed. A simulated bin of sixteen caps
+// makes both happen (12 poses wait, one is verified late) and change what those sub-groups
+// find: the counts and poses must still be those of one thread, `fast`'s second pass
+// (retry_all_voters) included. Skipping the late verification fails it.
 namespace {
 
 /// A simulated bin of sixteen built-in caps (seed 7) and the cap's database.
