@@ -207,6 +207,7 @@ std::string resultJson(const binpose::DetectionResult& r, const binpose::Detecti
   j["subgroups_retried"] = r.subgroups_retried;
   j["hypotheses"] = r.hypotheses;
   j["refined"] = r.refined;
+  j["refound"] = r.refound;
   j["params"] = nlohmann::json::parse(binpose::toJson(p));
   return j.dump(2);
 }

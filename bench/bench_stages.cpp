@@ -205,7 +205,7 @@ void BM_Refine(benchmark::State& state) {  // point-to-plane ICP from 1 mm and 2
   Pose start = truth;
   start.translation() += Vec3(0.6f, -0.5f, 0.6f);
   start.linear() = start.linear() * Eigen::AngleAxisf(0.035f, Vec3(1, 1, 0).normalized()).toRotationMatrix();
-  const IcpParams icp{f.params.icp_iterations, f.params.icp_max_distance, f.params.verify_tolerance, Vec3::Zero()};
+  const IcpParams icp{f.params.icp_iterations, f.params.icp_max_distance, f.params.verify_tolerance, Vec3::Zero(), {}, nullptr};
   // The model points the detector pairs up for icp_model_points = the argument (0: all).
   const OrientedPoints m = evenShare(f.model.points, f.model.normals, static_cast<std::size_t>(state.range(0)));
   for (auto _ : state)

@@ -64,6 +64,8 @@ struct GroupOutcome {
                                            ///< (a body of revolution's other axis sign)
   bool screened_out = false;               ///< the pose failed the pre-screen
   bool pending = false;                    ///< a pose not seen when it ran, not verified yet (Matcher::verify)
+  std::vector<Pose> path;                  ///< ICP's pose after each step
+  bool refound = false;                    ///< ICP came to an object already found (and stopped there)
   bool all_voters = false;                 ///< every member's candidates taken, not only the voters'
   int largest_clique = 0;                  ///< size of the first clique searched (0: none searched)
   Hypothesis hypothesis;                   ///< refined and scored (when the clique gave a pose that passed)
@@ -103,6 +105,8 @@ struct Matcher {
   /// True when a pose is another of an object already found (explain_score), or close to a
   /// clique pose already verified (tried_share): its clique is not verified again.
   std::function<bool(const Pose&)> seen;
+  /// True when a pose is another of an object already found: ICP stops there (refound).
+  std::function<bool(const Pose&)> found;
 
   /// Votes (4.3-4.4), clique (4.5), pose (4.6), pre-screen, ICP and score of one sub-group,
   /// with the scene points not yet removed: prepare(), then verify() when it asks for it.
@@ -125,7 +129,8 @@ struct Matcher {
     out.members.clear();
     out.clique.clear();
     out.poses.clear();
-    out.ran = out.screened_out = out.pending = false;
+    out.ran = out.screened_out = out.pending = out.refound = false;
+    out.path.clear();
     out.all_voters = all_voters;
     out.largest_clique = 0;
     out.hypothesis = {};
@@ -160,6 +165,8 @@ struct Matcher {
       out.screened_out = earlier->screened_out;
       out.hypothesis = earlier->hypothesis;
       out.score_without_grazing = earlier->score_without_grazing;
+      out.path = earlier->path;
+      out.refound = earlier->refound;
       return false;
     }
     out.pending = true;
@@ -251,7 +258,7 @@ struct Matcher {
       if (p.prescreen && best < gate) {
         if (p.prescreen_retry_steps > 0 && best >= p.prescreen_retry_share * gate) {
           // Near the scan but a few mm off: a few coarse ICP steps, and another look.
-          const IcpParams nudge{p.prescreen_retry_steps, p.icp_max_distance, p.verify_tolerance, p.viewpoint};
+          const IcpParams nudge{p.prescreen_retry_steps, p.icp_max_distance, p.verify_tolerance, p.viewpoint, {}, nullptr};
           const Pose moved = refinePose(det.pose, icp_model.points, icp_model.normals, scan.points, scan_grid, nudge);
           if (const float score = prescore(moved); score >= gate) {
             best = score;
@@ -265,8 +272,16 @@ struct Matcher {
       }
     }
     if (p.refine) {
-      const IcpParams icp{p.icp_iterations, p.icp_max_distance, p.verify_tolerance, p.viewpoint};
+      IcpParams icp{p.icp_iterations, p.icp_max_distance, p.verify_tolerance, p.viewpoint, {}, nullptr};
+      if (p.verify && p.refound_share > 0) {  // see take() in Detector::detect
+        icp.path = &s.outcome.path;
+        icp.stop = found;
+      }
       det.pose = refinePose(det.pose, icp_model.points, icp_model.normals, scan.points, scan_grid, icp);
+      if (p.verify && p.refound_share > 0 && found(det.pose)) {
+        s.outcome.refound = true;
+        return;
+      }
     }
     const Evidence e = evidence.evaluate(det.pose, db.model().points, db.model().normals, p.verify_tolerance,
                                          db.model().sample_radius, &h.support);
@@ -421,11 +436,15 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
 
   std::vector<Pose> found;  // poses of the detections scoring at least explain_score, or removal_score
   std::vector<Pose> tried;  // the closed-form poses of the cliques verified (empty when tried_share is 0)
-  auto seen = [&](const Pose& pose) {
-    return std::any_of(found.begin(), found.end(), [&](const Pose& f) { return samePose(pose, f); }) ||
-           std::any_of(tried.begin(), tried.end(), [&](const Pose& t) { return samePose(pose, t, p.tried_share); });
+  auto refound = [&](const Pose& pose) {
+    return p.refound_share > 0 &&
+           std::any_of(found.begin(), found.end(), [&](const Pose& f) { return samePose(pose, f, p.refound_share); });
   };
-  const Matcher matcher{db_, p, icp_model_, scene, scan, scan_grid, evidence, local.get(), may_vote, orbits(), cyclicSymmetry(), seen};
+  auto seen = [&](const Pose& pose) {
+    return std::any_of(found.begin(), found.end(), [&](const Pose& f) { return samePose(pose, f); }) || std::any_of(tried.begin(), tried.end(), [&](const Pose& t) { return samePose(pose, t, p.tried_share); });
+  };
+  const Matcher matcher{db_, p,       icp_model_,      scene,   scan, scan_grid, evidence, local.get(), may_vote,
+                        orbits(), cyclicSymmetry(), seen, refound};
   std::vector<char> removed(scene.points.size(), 0);
   std::vector<Hypothesis> hypotheses;
   int confident = 0;  // detections that removed their points
@@ -442,6 +461,13 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
     if (p.tried_share > 0) tried.insert(tried.end(), o.poses.begin(), o.poses.end());
     if (o.screened_out) return;
     ++result.refined;
+    // ICP brought the pose to an object found before this sub-group's turn: that object again.
+    // When it ran, fewer objects may have been found (a batch's run side by side); its path is
+    // looked at again, so the outcome is what running one after the other gives.
+    if (p.verify && (o.refound || std::any_of(o.path.begin(), o.path.end(), refound))) {
+      ++result.refound;
+      return;
+    }
     const Detection det = o.hypothesis.detection;
     if (p.verify && det.score < p.min_score) return;
     if (p.verify && o.all_voters && o.score_without_grazing < p.retry_min_score) return;  // see retry_min_score

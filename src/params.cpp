@@ -60,6 +60,7 @@ void visit(json& j, DetectionParams& p, bool write) {
   field(j, "removal_score", p.removal_score, write);
   field(j, "explain_score", p.explain_score, write);
   field(j, "tried_share", p.tried_share, write);
+  field(j, "refound_share", p.refound_share, write);
   field(j, "max_instances", p.max_instances, write);
   field(j, "clique_work_limit", p.clique_work_limit, write);
   field(j, "mirror_retries", p.mirror_retries, write);
@@ -211,6 +212,7 @@ void validate(const DetectionParams& p) {
   if (!(p.grazing_angle > 0 && p.grazing_angle <= 90))
     throw Error(fmt::format("grazing_angle must lie in (0, 90] degrees, got {}", p.grazing_angle));
   if (!(p.tried_share >= 0 && p.tried_share <= 1)) throw Error(fmt::format("tried_share must lie in [0, 1], got {}", p.tried_share));
+  if (!(p.refound_share >= 0 && p.refound_share <= 1)) throw Error(fmt::format("refound_share must lie in [0, 1], got {}", p.refound_share));
   if (p.prescreen_retry_steps < 0 || p.prescreen_retry_steps > 20)
     throw Error(fmt::format("prescreen_retry_steps must lie in [0, 20], got {}", p.prescreen_retry_steps));
   if (!(p.prescreen_retry_share >= 0 && p.prescreen_retry_share <= 1))

@@ -193,6 +193,8 @@ Pose refinePose(const Pose& pose, const Points& model_points, const Points& mode
     step.linear() = R;
     step.translation() = c - R * c + x.tail<3>().cast<float>();
     current = step * current;
+    if (params.path != nullptr) params.path->push_back(current);
+    if (params.stop && params.stop(current)) break;
     gate = std::max(params.min_distance, gate * 0.7f);
     // Converged when no model point moves more than kConverged (the step's rotation at the
     // part's reach plus its translation), or stalled (kStalled); the coarse points hand over

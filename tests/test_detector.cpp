@@ -267,6 +267,29 @@ TEST(Detector, CliquesNearATriedPoseAreNotVerifiedAgain) {
   EXPECT_EQ(skipping.detections.size(), all.detections.size());
 }
 
+// refound_share: ICP that brings a pose to an object already found stops there, and that
+// hypothesis is dropped. On the cap bin some are, none without it, and each copy is found at
+// the same place with the same score either way (the dropped ones were duplicates).
+TEST(Detector, IcpStopsAtAnObjectAlreadyFound) {
+  const ModelDatabase& db = capBin().db;
+  const SimulatedScene& bin = capBin().scene;
+  DetectionParams never = fastPreset();
+  never.refound_share = 0.0f;
+  const DetectionResult stopping = Detector(db, scaledToModel(fastPreset(), db.model().diameter)).detect(bin.cloud);
+  const DetectionResult full = Detector(db, scaledToModel(never, db.model().diameter)).detect(bin.cloud);
+  EXPECT_GT(stopping.refound, 0u);
+  EXPECT_EQ(full.refound, 0u);
+  EXPECT_EQ(stopping.refined, full.refined);
+  ASSERT_EQ(stopping.detections.size(), full.detections.size());
+  ASSERT_GE(stopping.detections.size(), 8u);
+  const Vec3 c = centroidOf(db.model().points);
+  for (std::size_t i = 0; i < stopping.detections.size(); ++i) {
+    const auto e = poseErrors(stopping.detections[i].pose, full.detections[i].pose, c);
+    EXPECT_LT(e.centroid_mm, 0.01f * db.model().diameter) << "detection " << i;
+    EXPECT_NEAR(stopping.detections[i].score, full.detections[i].score, 0.02f) << "detection " << i;
+  }
+}
+
 // Two caps of a simulated bin (cap-32 of bench/, copies 20 and 22) lie mouth to mouth, one rim
 // inside the other: over half of one's model points lie within 0.1 diameter of the other's
 // surface. Each pose explains its own scan points, though, and both are parts: the second one

@@ -39,6 +39,7 @@ struct DetectionResult {
   std::size_t subgroups_retried = 0;  ///< sub-groups run again with all their points voting (retry_all_voters)
   std::size_t hypotheses = 0;      ///< clique poses that reached verification
   std::size_t refined = 0;         ///< ... that passed the pre-screen and went through ICP
+  std::size_t refound = 0;         ///< ... that ICP brought to an object already found (refound_share)
 };
 
 /// A detection with the scan points that support it.

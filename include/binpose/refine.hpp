@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <vector>
 
 namespace binpose {
@@ -16,6 +17,9 @@ struct IcpParams {
   float max_distance = 3.0f;  ///< correspondence gate at the start, mm; shrinks to min_distance
   float min_distance = 1.0f;  ///< smallest gate, mm
   Vec3 viewpoint = Vec3::Zero();
+  /// When set: given the pose after each step, true ends ICP there (that pose is returned).
+  std::function<bool(const Pose&)> stop;
+  std::vector<Pose>* path = nullptr;  ///< when set: each step's pose is appended
 };
 
 /// Oriented model points, without the rest of a model's description.
