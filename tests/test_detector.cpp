@@ -9,6 +9,7 @@
 #include "synthetic.hpp"
 
 #include <fstream>
+#include <functional>
 #include <string>
 
 #include <tbb/global_control.h>
@@ -240,15 +241,25 @@ TEST(Detector, BinGivesTheSameResultWhateverTheThreadCount) {
   }
 }
 
+namespace {
+
+/// The cap bin's detections with `fast` as it is and with `fast` changed by `change`.
+std::pair<DetectionResult, DetectionResult> capBinFastAnd(const std::function<void(DetectionParams&)>& change) {
+  const ModelDatabase& db = capBin().db;
+  DetectionParams changed = fastPreset();
+  change(changed);
+  return {Detector(db, scaledToModel(fastPreset(), db.model().diameter)).detect(capBin().scene.cloud),
+          Detector(db, scaledToModel(changed, db.model().diameter)).detect(capBin().scene.cloud)};
+}
+
+}  // namespace
+
 // tried_share: a clique whose pose is close to one already verified is not verified again. On
 // the cap bin fewer poses are refined, and the same copies are found at the same places.
 TEST(Detector, CliquesNearATriedPoseAreNotVerifiedAgain) {
   const ModelDatabase& db = capBin().db;
   const SimulatedScene& bin = capBin().scene;
-  DetectionParams every = fastPreset();
-  every.tried_share = 0.0f;
-  const DetectionResult skipping = Detector(db, scaledToModel(fastPreset(), db.model().diameter)).detect(bin.cloud);
-  const DetectionResult all = Detector(db, scaledToModel(every, db.model().diameter)).detect(bin.cloud);
+  const auto [skipping, all] = capBinFastAnd([](DetectionParams& p) { p.tried_share = 0.0f; });
   EXPECT_LT(skipping.refined, all.refined);
   const Vec3 c = centroidOf(db.model().points);
   auto rightCopies = [&](const DetectionResult& r) {  // copies found within 0.1 diameter
@@ -272,11 +283,7 @@ TEST(Detector, CliquesNearATriedPoseAreNotVerifiedAgain) {
 // the same place with the same score either way (the dropped ones were duplicates).
 TEST(Detector, IcpStopsAtAnObjectAlreadyFound) {
   const ModelDatabase& db = capBin().db;
-  const SimulatedScene& bin = capBin().scene;
-  DetectionParams never = fastPreset();
-  never.refound_share = 0.0f;
-  const DetectionResult stopping = Detector(db, scaledToModel(fastPreset(), db.model().diameter)).detect(bin.cloud);
-  const DetectionResult full = Detector(db, scaledToModel(never, db.model().diameter)).detect(bin.cloud);
+  const auto [stopping, full] = capBinFastAnd([](DetectionParams& p) { p.refound_share = 0.0f; });
   EXPECT_GT(stopping.refound, 0u);
   EXPECT_EQ(full.refound, 0u);
   EXPECT_EQ(stopping.refined, full.refined);
