@@ -6,7 +6,11 @@
 #include "nearest_k.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#if defined(__SSE2__)
+#include <immintrin.h>
+#endif
 
 namespace binpose {
 namespace {
@@ -77,7 +81,7 @@ PointGrid::PointGrid(const Points& points, float cell) {
   for (std::size_t s = 0; s < ids_.size(); s += step) {
     std::uint32_t idx[2];
     float d2[2];
-    if (knn(points_[s], 2, idx, d2) == 2 && d2[1] > 0) spacing.push_back(std::sqrt(d2[1]));
+    if (knn(pointAt(static_cast<std::uint32_t>(s)), 2, idx, d2) == 2 && d2[1] > 0) spacing.push_back(std::sqrt(d2[1]));
   }
   if (spacing.empty()) return;
   std::nth_element(spacing.begin(), spacing.begin() + static_cast<long>(spacing.size() / 2), spacing.end());
@@ -95,7 +99,9 @@ void PointGrid::build(const Points& points, float cell) {
     }
   offsets_.assign(2, 0);
   ids_.clear();
-  points_.clear();
+  x_.clear();
+  y_.clear();
+  z_.clear();
   nx_ = ny_ = nz_ = 1;
   if (finite == 0) return;
   robustBox(points, finite, lo, hi);
@@ -122,15 +128,35 @@ void PointGrid::build(const Points& points, float cell) {
                                             clampCell(a.x(), nx_));
   }
   sortByCell(cell_of, std::size_t(nx_) * std::size_t(ny_) * std::size_t(nz_), offsets_, ids_);
-  points_.resize(ids_.size());
-  for (std::size_t s = 0; s < ids_.size(); ++s) points_[s] = points[ids_[s]];
+  x_.assign(ids_.size() + kPad, 0.0f);
+  y_.assign(ids_.size() + kPad, 0.0f);
+  z_.assign(ids_.size() + kPad, 0.0f);
+  for (std::size_t s = 0; s < ids_.size(); ++s) {
+    const Vec3& p = points[ids_[s]];
+    x_[s] = p.x();
+    y_[s] = p.y();
+    z_[s] = p.z();
+  }
 }
 
 PointGrid::Box PointGrid::boxAround(const Vec3& q, float radius) const {
+#if defined(__SSE4_1__)
+  // clampCell's steps on the three axes at once (the same divisions, floors and clamps): a
+  // quarter of the instructions, on a path every query takes.
+  const __m128 cell = _mm_set1_ps(cell_), r = _mm_set1_ps(radius / cell_), zero = _mm_setzero_ps();
+  const __m128 a = _mm_div_ps(_mm_sub_ps(_mm_setr_ps(q.x(), q.y(), q.z(), 0.0f), _mm_setr_ps(lo_.x(), lo_.y(), lo_.z(), 0.0f)), cell);
+  const __m128 last = _mm_setr_ps(float(nx_ - 1), float(ny_ - 1), float(nz_ - 1), 0.0f);
+  const auto clamped = [&](__m128 v) { return _mm_cvttps_epi32(_mm_min_ps(_mm_max_ps(_mm_floor_ps(v), zero), last)); };
+  alignas(16) int low[4], high[4];
+  _mm_store_si128(reinterpret_cast<__m128i*>(low), clamped(_mm_sub_ps(a, r)));
+  _mm_store_si128(reinterpret_cast<__m128i*>(high), clamped(_mm_add_ps(a, r)));
+  return {low[0], high[0], low[1], high[1], low[2], high[2]};
+#else
   const Vec3 a = (q - lo_) / cell_;
   const float r = radius / cell_;
   return {clampCell(a.x() - r, nx_), clampCell(a.x() + r, nx_), clampCell(a.y() - r, ny_),
           clampCell(a.y() + r, ny_), clampCell(a.z() - r, nz_), clampCell(a.z() + r, nz_)};
+#endif
 }
 
 float PointGrid::coveredDistance(const Vec3& q, const Box& b) const {
@@ -143,23 +169,47 @@ float PointGrid::coveredDistance(const Vec3& q, const Box& b) const {
   return std::max(0.0f, std::min({side(0, b.x0, b.x1, nx_), side(1, b.y0, b.y1, ny_), side(2, b.z0, b.z1, nz_)}));
 }
 
-template <class Test>
-bool PointGrid::anyInBox(const Box& b, Test&& test) const {
+template <class Row>
+bool PointGrid::anyRow(const Box& b, Row&& row) const {
   for (int z = b.z0; z <= b.z1; ++z)
     for (int y = b.y0; y <= b.y1; ++y) {
-      const std::size_t row = (std::size_t(z) * ny_ + y) * nx_;  // a row's cells are side by side in points_
-      for (std::uint32_t s = offsets_[row + b.x0]; s < offsets_[row + b.x1 + 1]; ++s)
-        if (test(s)) return true;
+      const std::size_t at = (std::size_t(z) * ny_ + y) * nx_;  // a row's cells are side by side
+      if (row(offsets_[at + b.x0], offsets_[at + b.x1 + 1])) return true;
     }
   return false;
 }
 
-template <class Visit>
-void PointGrid::forEachInBox(const Box& b, Visit&& visit) const {
-  anyInBox(b, [&](std::uint32_t s) {
-    visit(s);
-    return false;
-  });
+template <class Hit>
+bool PointGrid::scan(std::uint32_t first, std::uint32_t end, const Vec3& q, float limit, Hit&& hit, float* seen) const {
+#if defined(__SSE2__)
+  // (p - q).squaredNorm() of an Eigen 3-vector sums x^2 + (y^2 + z^2): the same here, lane by lane.
+  const __m128 qx = _mm_set1_ps(q.x()), qy = _mm_set1_ps(q.y()), qz = _mm_set1_ps(q.z()), most = _mm_set1_ps(limit);
+  alignas(16) float d2[4];
+  for (std::uint32_t s = first; s < end; s += 4) {
+    const __m128 dx = _mm_sub_ps(_mm_loadu_ps(x_.data() + s), qx);
+    const __m128 dy = _mm_sub_ps(_mm_loadu_ps(y_.data() + s), qy);
+    const __m128 dz = _mm_sub_ps(_mm_loadu_ps(z_.data() + s), qz);
+    const __m128 d = _mm_add_ps(_mm_mul_ps(dx, dx), _mm_add_ps(_mm_mul_ps(dy, dy), _mm_mul_ps(dz, dz)));
+    const unsigned valid = end - s >= 4 ? 0xFu : (1u << (end - s)) - 1u;  // lanes past `end`: other rows' points, or padding
+    unsigned near = static_cast<unsigned>(_mm_movemask_ps(_mm_cmple_ps(d, most))) & valid;
+    if (near == 0 && seen == nullptr) continue;
+    _mm_store_ps(d2, d);
+    if (seen != nullptr)
+      for (unsigned lanes = valid; lanes != 0; lanes &= lanes - 1) *seen = std::min(*seen, d2[std::countr_zero(lanes)]);
+    for (; near != 0; near &= near - 1) {
+      const auto lane = static_cast<std::uint32_t>(std::countr_zero(near));
+      if (hit(s + lane, d2[lane])) return true;
+    }
+  }
+  return false;
+#else
+  for (std::uint32_t s = first; s < end; ++s) {
+    const float d2 = (pointAt(s) - q).squaredNorm();
+    if (seen != nullptr) *seen = std::min(*seen, d2);
+    if (d2 <= limit && hit(s, d2)) return true;
+  }
+  return false;
+#endif
 }
 
 std::size_t PointGrid::knn(const Vec3& q, std::size_t k, std::uint32_t* indices, float* sq_dists) const {
@@ -170,7 +220,12 @@ std::size_t PointGrid::knn(const Vec3& q, std::size_t k, std::uint32_t* indices,
   for (float radius = cell_;; radius *= 2.0f) {
     detail::NearestK best{k, 0, indices, sq_dists};
     const Box b = boxAround(q, radius);
-    forEachInBox(b, [&](std::uint32_t s) { best.offer((points_[s] - q).squaredNorm(), ids_[s]); });
+    anyRow(b, [&](std::uint32_t first, std::uint32_t end) {
+      return scan(first, end, q, INFINITY, [&](std::uint32_t s, float d2) {
+        best.offer(d2, ids_[s]);
+        return false;
+      });
+    });
     const float covered = coveredDistance(q, b);
     if ((best.count == k && sq_dists[k - 1] <= covered * covered) || covered == INFINITY) return best.count;
   }
@@ -178,9 +233,11 @@ std::size_t PointGrid::knn(const Vec3& q, std::size_t k, std::uint32_t* indices,
 
 bool PointGrid::searchBox(const Vec3& q, float radius, float limit, std::uint32_t& index, float& sq_dist) const {
   detail::NearestK best{1, 0, &index, &sq_dist};
-  forEachInBox(boxAround(q, radius), [&](std::uint32_t s) {
-    const float d2 = (points_[s] - q).squaredNorm();
-    if (d2 <= limit) best.offer(d2, ids_[s]);
+  anyRow(boxAround(q, radius), [&](std::uint32_t first, std::uint32_t end) {
+    return scan(first, end, q, limit, [&](std::uint32_t s, float d2) {
+      best.offer(d2, ids_[s]);
+      return false;
+    });
   });
   return best.count == 1;
 }
@@ -210,10 +267,11 @@ bool PointGrid::nearest(const Vec3& q, float max_distance, std::uint32_t& index,
   const float limit = max_distance * max_distance;
   detail::NearestK best{1, 0, &index, &sq_dist};
   float seen = INFINITY;
-  forEachInBox(b, [&](std::uint32_t s) {
-    const float d2 = (points_[s] - q).squaredNorm();
-    if (d2 <= limit) best.offer(d2, ids_[s]);
-    seen = std::min(seen, d2);
+  anyRow(b, [&](std::uint32_t first, std::uint32_t end) {
+    return scan(first, end, q, limit, [&](std::uint32_t s, float d2) {
+      best.offer(d2, ids_[s]);
+      return false;
+    }, &seen);
   });
   if (best.count == 1) return true;
   clearance = std::min(std::sqrt(seen), coveredDistance(q, b));
@@ -230,7 +288,9 @@ bool PointGrid::anyWithin(const Vec3& q, float max_distance) const {
   if (ids_.empty() || !q.allFinite() || !(max_distance >= 0)) return false;
   const float limit = max_distance * max_distance;
   const auto hit = [&](const Box& b) {
-    return anyInBox(b, [&](std::uint32_t s) { return (points_[s] - q).squaredNorm() <= limit; });
+    return anyRow(b, [&](std::uint32_t first, std::uint32_t end) {
+      return scan(first, end, q, limit, [](std::uint32_t, float) { return true; });
+    });
   };
   // As nearest(): the cells around q first, where a point on a surface the scan sees finds one.
   return (max_distance > 0.5f * cell_ && hit(boxAround(q, 0.5f * cell_))) || hit(boxAround(q, max_distance));
@@ -239,9 +299,15 @@ bool PointGrid::anyWithin(const Vec3& q, float max_distance) const {
 void PointGrid::within(const Vec3& q, float radius, std::vector<std::uint32_t>& out) const {
   out.clear();
   if (ids_.empty() || !q.allFinite() || !(radius > 0)) return;
-  const float limit = radius * radius;
-  forEachInBox(boxAround(q, radius), [&](std::uint32_t s) {
-    if ((points_[s] - q).squaredNorm() < limit) out.push_back(ids_[s]);
+  // Strictly closer: d2 < r^2 is d2 <= the float just below it (none when r^2 rounds to 0).
+  const float square = radius * radius;
+  if (!(square > 0)) return;
+  const float limit = std::nextafter(square, 0.0f);
+  anyRow(boxAround(q, radius), [&](std::uint32_t first, std::uint32_t end) {
+    return scan(first, end, q, limit, [&](std::uint32_t s, float) {
+      out.push_back(ids_[s]);
+      return false;
+    });
   });
 }
 

@@ -64,21 +64,27 @@ class PointGrid {
   /// How far from q every point lies inside the cells of `b` (the distance to the box's nearest
   /// face not on the grid's border; infinite when every face is on it).
   [[nodiscard]] float coveredDistance(const Vec3& q, const Box& b) const;
-  /// test(slot) for each point of the cells of `b` (slots index ids_ and points_) until one
-  /// returns true; whether one did.
-  template <class Test>
-  bool anyInBox(const Box& b, Test&& test) const;
-  /// visit(slot) for each point of the cells of `b`.
-  template <class Visit>
-  void forEachInBox(const Box& b, Visit&& visit) const;
+  /// row(first, end) for each row of the cells of `b` (the slots first to end - 1, side by side)
+  /// until one returns true; whether one did.
+  template <class Row>
+  bool anyRow(const Box& b, Row&& row) const;
+  /// hit(slot, d2) for each slot of [first, end) whose squared distance d2 to q is at most
+  /// `limit`, in slot order, until one returns true; whether one did. Four points at a time, with
+  /// the very sums of (p - q).squaredNorm(). With `seen`, also lowers *seen to every distance.
+  template <class Hit>
+  bool scan(std::uint32_t first, std::uint32_t end, const Vec3& q, float limit, Hit&& hit, float* seen = nullptr) const;
+  [[nodiscard]] Vec3 pointAt(std::uint32_t slot) const { return {x_[slot], y_[slot], z_[slot]}; }
   void build(const Points& points, float cell);
 
   float cell_ = 1.0f;
   Vec3 lo_ = Vec3::Zero();
   int nx_ = 0, ny_ = 0, nz_ = 0;
-  std::vector<std::uint32_t> offsets_;  ///< cells + 1 offsets into ids_ / points_ (x fastest)
+  std::vector<std::uint32_t> offsets_;  ///< cells + 1 offsets into ids_ and x_, y_, z_ (x fastest)
   std::vector<std::uint32_t> ids_;      ///< point indices in cell order
-  Points points_;                       ///< the points in cell order (a cell's points side by side)
+  /// The points in cell order (a cell's points side by side), each coordinate apart for SIMD
+  /// lanes, with kPad unused entries at the end (a last load of four stays inside).
+  std::vector<float> x_, y_, z_;
+  static constexpr std::size_t kPad = 3;
 };
 
 }  // namespace binpose
