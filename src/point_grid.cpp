@@ -15,6 +15,12 @@
 namespace binpose {
 namespace {
 
+/// A query that found no point within its distance last time (ICP's model points hidden behind
+/// other parts) is searched out to this many times the distance: the same answer, and a larger
+/// clearance, which spares its next searches. On cap-16's ICP 1.5 left 39 000 of 59 000 such
+/// searches (1.2% of the detection's instructions); 3 searched too far.
+constexpr float kMissReach = 1.5f;
+
 int clampCell(float v, int n) { return static_cast<int>(std::clamp(std::floor(v), 0.0f, static_cast<float>(n - 1))); }
 
 /// Shrinks the box [lo, hi] to the bulk of the points: per axis, the 1st to 99th percentile of
@@ -263,7 +269,7 @@ bool PointGrid::nearest(const Vec3& q, float max_distance, std::uint32_t& index,
   // The last box as searchBox, keeping the nearest point seen beyond the limit too. Kept apart
   // from searchBox: tracking it there (behind a pointer test) cost every other query, 0.1-0.2%
   // of detect's instructions on the 16-part bins.
-  const Box b = boxAround(q, max_distance);
+  const Box b = boxAround(q, missed_before ? kMissReach * max_distance : max_distance);
   const float limit = max_distance * max_distance;
   detail::NearestK best{1, 0, &index, &sq_dist};
   float seen = INFINITY;

@@ -89,7 +89,7 @@ TEST(PointGrid, AMissReportsAClearanceFreeOfPoints) {
   for (const float cell : {0.0f, 0.7f, 2.0f}) {
     const PointGrid grid(points, cell);
     Rng rng(13);
-    int missed = 0, beyond_gate = 0;
+    int missed = 0, beyond_gate = 0, wider = 0;
     for (int t = 0; t < 1500; ++t) {
       const Vec3 q = queryNear(points, rng, 8.0f);
       const float gate = 0.25f + 3.0f * float(rng.uniform());
@@ -110,10 +110,12 @@ TEST(PointGrid, AMissReportsAClearanceFreeOfPoints) {
         EXPECT_LE(clearance * clearance, truth[0].first * (1 + 1e-5f)) << "cell " << cell << " query " << t;
         missed += before == 0;
         beyond_gate += before == 0 && clearance > 1.2f * gate;
+        wider += before == 1 && clearance > 1.45f * gate;
       }
     }
     EXPECT_GT(missed, 200) << "cell " << cell;
     EXPECT_GT(beyond_gate, 50) << "cell " << cell;  // the clearance tells more than the gate
+    EXPECT_GT(wider, missed / 2) << "cell " << cell;  // after a miss, the wider box's clearance (1.0: 45-174 of 869)
   }
 }
 

@@ -38,7 +38,8 @@ class PointGrid {
   /// box's nearest inner face (0 when one is found). A caller whose query moves a little (ICP)
   /// knows without a search that the query moved by less than clearance - max_distance still
   /// has none. On entry, a clearance above 0 (the query's last search found none) skips the
-  /// small boxes around q that settle most queries: the same answer, sooner.
+  /// small boxes around q that settle most queries, and searches a box 1.5 times as wide (a
+  /// larger clearance, that spares the next searches): the same answer.
   bool nearest(const Vec3& q, float max_distance, std::uint32_t& index, float& sq_dist, float& clearance) const;
   /// The nearest point of q at a squared distance of at most `sq_limit`, as nearest() with
   /// max_distance^2 = sq_limit: for a caller that knows a point that close (ICP, whose pairs move
