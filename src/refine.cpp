@@ -4,9 +4,13 @@
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <optional>
 #include <tbb/parallel_for.h>
+#if defined(__SSE2__)
+#include <immintrin.h>
+#endif
 
 namespace binpose {
 namespace {
@@ -16,6 +20,7 @@ bool facesSensor(const Vec3& p, const Vec3& n, const Vec3& viewpoint) { return n
 /// Points per task of the parallel loops: fixed, so the partial sums and their order (and so
 /// every bit of the result) are the same whatever the thread count.
 constexpr std::size_t kChunk = 128;
+static_assert(kChunk % 4 == 0, "a chunk starts on a SIMD lane boundary");
 
 /// One chunk's share of ICP's normal equations.
 struct NormalEquations {
@@ -59,6 +64,59 @@ class ZBuffer {
   long x0_ = 0, y0_ = 0, width_ = 0, height_ = 0;
   std::vector<float> nearest_;
 };
+
+/// Oriented points as six coordinate arrays (x, y, z, nx, ny, nz), every `stride`-th of the
+/// input, each array padded to a multiple of 4 (SIMD lanes).
+struct OrientedLanes {
+  std::array<std::vector<float>, 6> c;
+  std::size_t size = 0;
+  OrientedLanes(const Points& points, const Points& normals, std::size_t stride) {
+    size = (points.size() + stride - 1) / stride;
+    for (auto& v : c) v.assign((size + 3) / 4 * 4, 0.0f);
+    for (std::size_t s = 0; s < size; ++s)
+      for (int a = 0; a < 3; ++a) {
+        c[a][s] = points[s * stride][a];
+        c[3 + a][s] = normals[s * stride][a];
+      }
+  }
+};
+
+/// Four points of `lanes` from slot s posed (p = pose * m, n = pose.linear() * n_m) into p and n
+/// (four x, then four y, then four z each), and a mask of those facing the viewpoint: the very
+/// sums Eigen's products and facesSensor() make (a Transform times a vector sums its columns in
+/// turn, ((R0 x + R1 y) + R2 z) + t; a matrix times a vector and a dot product sum a + (b + c)),
+/// so each lane is bit for bit what the scalar code gives.
+unsigned poseFour(const OrientedLanes& lanes, std::size_t s, const Pose& pose, const Vec3& viewpoint, float* p, float* n) {
+#if defined(__SSE2__)
+  const Eigen::Matrix3f& R = pose.linear();
+  const Vec3 t = pose.translation();
+  const __m128 x = _mm_loadu_ps(lanes.c[0].data() + s), y = _mm_loadu_ps(lanes.c[1].data() + s), z = _mm_loadu_ps(lanes.c[2].data() + s);
+  const __m128 a = _mm_loadu_ps(lanes.c[3].data() + s), b = _mm_loadu_ps(lanes.c[4].data() + s), c = _mm_loadu_ps(lanes.c[5].data() + s);
+  __m128 w[3], m[3];
+  for (int k = 0; k < 3; ++k) {
+    const __m128 r0 = _mm_set1_ps(R(k, 0)), r1 = _mm_set1_ps(R(k, 1)), r2 = _mm_set1_ps(R(k, 2));
+    const __m128 pk = _mm_add_ps(_mm_add_ps(_mm_add_ps(_mm_mul_ps(r0, x), _mm_mul_ps(r1, y)), _mm_mul_ps(r2, z)), _mm_set1_ps(t[k]));
+    m[k] = _mm_add_ps(_mm_mul_ps(r0, a), _mm_add_ps(_mm_mul_ps(r1, b), _mm_mul_ps(r2, c)));
+    w[k] = _mm_sub_ps(_mm_set1_ps(viewpoint[k]), pk);
+    _mm_storeu_ps(p + 4 * k, pk);
+    _mm_storeu_ps(n + 4 * k, m[k]);
+  }
+  const __m128 dot = _mm_add_ps(_mm_mul_ps(m[0], w[0]), _mm_add_ps(_mm_mul_ps(m[1], w[1]), _mm_mul_ps(m[2], w[2])));
+  return static_cast<unsigned>(_mm_movemask_ps(_mm_cmpgt_ps(dot, _mm_setzero_ps())));
+#else
+  unsigned facing = 0;
+  for (int l = 0; l < 4; ++l) {
+    const Vec3 q = pose * Vec3(lanes.c[0][s + l], lanes.c[1][s + l], lanes.c[2][s + l]);
+    const Vec3 v = pose.linear() * Vec3(lanes.c[3][s + l], lanes.c[4][s + l], lanes.c[5][s + l]);
+    for (int k = 0; k < 3; ++k) {
+      p[4 * k + l] = q[k];
+      n[4 * k + l] = v[k];
+    }
+    facing |= unsigned(facesSensor(q, v, viewpoint)) << l;
+  }
+  return facing;
+#endif
+}
 
 constexpr std::uint32_t kUnpaired = ~std::uint32_t{0};
 
@@ -127,6 +185,7 @@ Pose refinePose(const Pose& pose, const Points& model_points, const Points& mode
   float gate = params.max_distance;
   std::vector<NormalEquations> parts((model_points.size() + kChunk - 1) / kChunk);
   std::size_t stride = model_points.size() >= 64 * kCoarseStride ? kCoarseStride : 1;
+  const OrientedLanes all(model_points, model_normals, 1), coarse(model_points, model_normals, stride);
   // Each model point's scan pair of the step before: the pairs move little from step to step, so
   // the nearest lies no farther than the old pair, and a search of that small box finds it (the
   // same pair as a search out to the gate).
@@ -145,14 +204,20 @@ Pose refinePose(const Pose& pose, const Points& model_points, const Points& mode
     const Vec3 c = current * model_centre;
     const std::size_t used = (model_points.size() + stride - 1) / stride;  // points i = s * stride
     const std::size_t chunks = (used + kChunk - 1) / kChunk;
+    const OrientedLanes& lanes = stride == 1 ? all : coarse;
     tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t k) {
       NormalEquations& e = parts[k];
       e = NormalEquations{};
-      for (std::size_t s = k * kChunk; s < std::min(used, (k + 1) * kChunk); ++s) {
+      const std::size_t end = std::min(used, (k + 1) * kChunk);
+      alignas(16) float pf[12], nf[12];  // four posed points and normals, coordinate by coordinate
+      unsigned facing = 0;
+      for (std::size_t s = k * kChunk; s < end; ++s) {
+        const std::size_t lane = (s - k * kChunk) % 4;  // kChunk is a multiple of 4
+        if (lane == 0) facing = poseFour(lanes, s, current, params.viewpoint, pf, nf);
+        if ((facing >> lane & 1u) == 0) continue;
         const std::size_t i = s * stride;
-        const Vec3 p = current * model_points[i];
-        const Vec3 n = current.linear() * model_normals[i];
-        if (!facesSensor(p, n, params.viewpoint)) continue;
+        const Vec3 p(pf[lane], pf[4 + lane], pf[8 + lane]);
+        const Vec3 n(nf[lane], nf[4 + lane], nf[8 + lane]);
         std::uint32_t& j = paired[i];
         if (j == kUnpaired && clearance[i] - (p - missed_at[i]).norm() > gate + kClearanceMargin) continue;
         float d2;
