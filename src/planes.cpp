@@ -4,7 +4,8 @@
 #include <binpose/geometry.hpp>
 #include <binpose/point_grid.hpp>
 
-#include <array>
+#include "oriented_lanes.hpp"
+
 #include <cmath>
 #include <fmt/format.h>
 #include <tbb/parallel_for.h>
@@ -46,24 +47,10 @@ std::vector<std::vector<std::uint32_t>> patches(const Points& points, const std:
   return out;
 }
 
-/// The points a RANSAC hypothesis is scored on, coordinates and normals side by side.
-struct Probe {
-  std::array<std::vector<float>, 6> c;  // x, y, z, nx, ny, nz
-
-  void assign(const Points& points, const Points& normals, const std::vector<std::uint32_t>& chosen) {
-    for (auto& v : c) v.resize(chosen.size());
-    for (std::size_t k = 0; k < chosen.size(); ++k)
-      for (int a = 0; a < 3; ++a) {
-        c[a][k] = points[chosen[k]][a];
-        c[3 + a][k] = normals[chosen[k]][a];
-      }
-  }
-};
-
 /// How many probe points lie on `plane`: onPlane with the same sums in the same order, on SIMD
 /// lanes (300 hypotheses a plane made this loop half of the plane search's time).
 __attribute__((target_clones("avx2", "default")))
-std::size_t countOnPlane(const Probe& probe, const Plane& plane, float tolerance, float min_cos) {
+std::size_t countOnPlane(const detail::OrientedLanes& probe, const Plane& plane, float tolerance, float min_cos) {
   const float* x = probe.c[0].data();
   const float* y = probe.c[1].data();
   const float* z = probe.c[2].data();
@@ -72,7 +59,7 @@ std::size_t countOnPlane(const Probe& probe, const Plane& plane, float tolerance
   const float* nz = probe.c[5].data();
   const float a = plane.normal.x(), b = plane.normal.y(), c = plane.normal.z(), d = plane.d;
   std::uint32_t count = 0;
-  for (std::size_t k = 0; k < probe.c[0].size(); ++k) {
+  for (std::size_t k = 0; k < probe.size; ++k) {
     const bool near = std::abs(a * x[k] + b * y[k] + c * z[k] - d) <= tolerance;
     const bool aligned = std::abs(a * nx[k] + b * ny[k] + c * nz[k]) >= min_cos;
     count += static_cast<std::uint32_t>(near & aligned);
@@ -102,7 +89,7 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
   const float min_cos = std::cos(params.max_angle);
   Rng rng(params.seed);
   std::vector<std::uint32_t> left, probe, inliers;
-  Probe probe_points;
+  detail::OrientedLanes probe_points;  // the points a RANSAC hypothesis is scored on
   std::vector<Plane> hypotheses;
   std::vector<std::size_t> counts;
   // A background plane's inliers split into patches (a flood fill, a third of the search's
@@ -125,7 +112,7 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
     probe.clear();
     const std::size_t step = std::max<std::size_t>(1, left.size() / 1000);
     for (std::size_t k = 0; k < left.size(); k += step) probe.push_back(left[k]);
-    probe_points.assign(points, normals, probe);
+    probe_points.assign(points, normals, probe.size(), [&](std::size_t k) { return probe[k]; });
     // The hypotheses drawn in turn, scored side by side, the first of the highest score kept.
     hypotheses.clear();
     for (int t = 0; t < params.trials; ++t) {

@@ -1,10 +1,11 @@
 // ICP refinement and verification score.
 #include <binpose/refine.hpp>
 
+#include "oriented_lanes.hpp"
+
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <optional>
 #include <tbb/parallel_for.h>
@@ -65,28 +66,19 @@ class ZBuffer {
   std::vector<float> nearest_;
 };
 
-/// Oriented points as six coordinate arrays (x, y, z, nx, ny, nz), every `stride`-th of the
-/// input, each array padded to a multiple of 4 (SIMD lanes).
-struct OrientedLanes {
-  std::array<std::vector<float>, 6> c;
-  std::size_t size = 0;
-  OrientedLanes(const Points& points, const Points& normals, std::size_t stride) {
-    size = (points.size() + stride - 1) / stride;
-    for (auto& v : c) v.assign((size + 3) / 4 * 4, 0.0f);
-    for (std::size_t s = 0; s < size; ++s)
-      for (int a = 0; a < 3; ++a) {
-        c[a][s] = points[s * stride][a];
-        c[3 + a][s] = normals[s * stride][a];
-      }
-  }
-};
+/// Every `stride`-th model point and normal as lanes (poseFour's input).
+detail::OrientedLanes lanesOf(const Points& points, const Points& normals, std::size_t stride) {
+  detail::OrientedLanes lanes;
+  lanes.assign(points, normals, (points.size() + stride - 1) / stride, [stride](std::size_t s) { return s * stride; });
+  return lanes;
+}
 
 /// Four points of `lanes` from slot s posed (p = pose * m, n = pose.linear() * n_m) into p and n
 /// (four x, then four y, then four z each), and a mask of those facing the viewpoint: the very
 /// sums Eigen's products and facesSensor() make (a Transform times a vector sums its columns in
 /// turn, ((R0 x + R1 y) + R2 z) + t; a matrix times a vector and a dot product sum a + (b + c)),
 /// so each lane is bit for bit what the scalar code gives.
-unsigned poseFour(const OrientedLanes& lanes, std::size_t s, const Pose& pose, const Vec3& viewpoint, float* p, float* n) {
+unsigned poseFour(const detail::OrientedLanes& lanes, std::size_t s, const Pose& pose, const Vec3& viewpoint, float* p, float* n) {
 #if defined(__SSE2__)
   const Eigen::Matrix3f& R = pose.linear();
   const Vec3 t = pose.translation();
@@ -185,7 +177,7 @@ Pose refinePose(const Pose& pose, const Points& model_points, const Points& mode
   float gate = params.max_distance;
   std::vector<NormalEquations> parts((model_points.size() + kChunk - 1) / kChunk);
   std::size_t stride = model_points.size() >= 64 * kCoarseStride ? kCoarseStride : 1;
-  const OrientedLanes all(model_points, model_normals, 1), coarse(model_points, model_normals, stride);
+  const detail::OrientedLanes all = lanesOf(model_points, model_normals, 1), coarse = lanesOf(model_points, model_normals, stride);
   // Each model point's scan pair of the step before: the pairs move little from step to step, so
   // the nearest lies no farther than the old pair, and a search of that small box finds it (the
   // same pair as a search out to the gate).
@@ -204,7 +196,7 @@ Pose refinePose(const Pose& pose, const Points& model_points, const Points& mode
     const Vec3 c = current * model_centre;
     const std::size_t used = (model_points.size() + stride - 1) / stride;  // points i = s * stride
     const std::size_t chunks = (used + kChunk - 1) / kChunk;
-    const OrientedLanes& lanes = stride == 1 ? all : coarse;
+    const detail::OrientedLanes& lanes = stride == 1 ? all : coarse;
     tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t k) {
       NormalEquations& e = parts[k];
       e = NormalEquations{};
