@@ -5,6 +5,7 @@
 #include <binpose/normals.hpp>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <fmt/format.h>
 #include <numeric>
@@ -61,6 +62,39 @@ void groupByVoxel(const Points& points, float voxel, std::vector<std::uint32_t>&
   }
   first.push_back(static_cast<std::uint32_t>(n));
 }
+
+/// The points bucketed by x-y cells of side r from lo (floor((p - lo) / r) per axis; wider in a
+/// scene of more than 2048 cells a side), each cell's in index order: a circle of radius r
+/// touches at most 3 x 3 of them.
+class XyCells {
+ public:
+  XyCells(const Points& points, const Vec3& lo, const Vec3& hi, float r)
+      : side_(std::max(r, std::max(hi.x() - lo.x(), hi.y() - lo.y()) / 2048.0f)) {
+    nx_ = cell(hi.x() - lo.x()) + 1;
+    ny_ = cell(hi.y() - lo.y()) + 1;
+    std::vector<std::uint32_t> cell_of(points.size());
+    for (std::size_t i = 0; i < points.size(); ++i)
+      cell_of[i] = static_cast<std::uint32_t>(cell(points[i].x() - lo.x()) * ny_ + cell(points[i].y() - lo.y()));
+    sortByCell(cell_of, static_cast<std::size_t>(nx_ * ny_), offsets_, order_);
+  }
+  /// Calls visit(i) for each point i of the cells that overlap the x-y box [low, high] (relative to lo).
+  template <class Visit>
+  void inBox(const Vec3& low, const Vec3& high, Visit visit) const {
+    const std::int64_t x0 = std::max<std::int64_t>(0, cell(low.x())), x1 = std::min(nx_ - 1, cell(high.x()));
+    const std::int64_t y0 = std::max<std::int64_t>(0, cell(low.y())), y1 = std::min(ny_ - 1, cell(high.y()));
+    for (std::int64_t cx = x0; cx <= x1; ++cx)
+      for (std::int64_t cy = y0; cy <= y1; ++cy) {
+        const auto c = static_cast<std::size_t>(cx * ny_ + cy);
+        for (std::uint32_t k = offsets_[c]; k < offsets_[c + 1]; ++k) visit(order_[k]);
+      }
+  }
+
+ private:
+  [[nodiscard]] std::int64_t cell(float v) const { return static_cast<std::int64_t>(std::floor(v / side_)); }
+  float side_;
+  std::int64_t nx_ = 0, ny_ = 0;
+  std::vector<std::uint32_t> offsets_, order_;
+};
 
 }  // namespace
 
@@ -124,33 +158,34 @@ std::vector<std::vector<std::uint32_t>> makeSubGroups(const Points& points, floa
   const auto nx = static_cast<long>(std::floor((hi.x() - lo.x()) / eta)) + 1;
   const auto ny = static_cast<long>(std::floor((hi.y() - lo.y()) / eta)) + 1;
   if (nx * ny > 4'000'000) throw Error(fmt::format("eta {} mm gives {} sub-groups over the scene; use a larger eta", eta, nx * ny));
-  // Points bucketed by x-y cells of side r: a circle of radius r touches at most 3 x 3 cells.
-  std::vector<std::pair<std::uint64_t, std::uint32_t>> cells(points.size());
-  for (std::size_t i = 0; i < points.size(); ++i)
-    cells[i] = {cellKey(points[i] - lo, r, 2), static_cast<std::uint32_t>(i)};
-  std::sort(cells.begin(), cells.end());
+  const XyCells cells(points, lo, hi, r);
   // Each column of nodes on its own (in parallel), joined in column order.
   std::vector<std::vector<std::vector<std::uint32_t>>> columns(static_cast<std::size_t>(nx));
-  tbb::parallel_for(long{0}, nx, [&](long gx) {
-    for (long gy = 0; gy < ny; ++gy) {
-      const Vec3 node = lo + Vec3(float(gx) * eta, float(gy) * eta, 0.0f);
-      std::vector<std::uint32_t> members;
-      for (int dx = -1; dx <= 1; ++dx)
-        for (int dy = -1; dy <= 1; ++dy) {
-          const Vec3 probe = node - lo + Vec3(float(dx) * r, float(dy) * r, 0.0f);
-          if (probe.x() < -r || probe.y() < -r) continue;
-          const std::uint64_t key = cellKey(probe, r, 2);
-          auto it = std::lower_bound(cells.begin(), cells.end(), std::make_pair(key, 0u));
-          for (; it != cells.end() && it->first == key; ++it) {
-            const Vec3& p = points[it->second];
-            if ((p.x() - node.x()) * (p.x() - node.x()) + (p.y() - node.y()) * (p.y() - node.y()) <= r * r)
-              members.push_back(it->second);
-          }
+  tbb::parallel_for(tbb::blocked_range<long>(0, nx), [&](const tbb::blocked_range<long>& range) {
+    std::vector<std::uint64_t> marks((points.size() + 63) / 64, 0);  // the members as bits, read out in index order
+    for (long gx = range.begin(); gx != range.end(); ++gx)
+      for (long gy = 0; gy < ny; ++gy) {
+        const Vec3 node = lo + Vec3(float(gx) * eta, float(gy) * eta, 0.0f);
+        std::size_t count = 0, first_word = marks.size(), last_word = 0;
+        cells.inBox(node - lo + Vec3(-r, -r, 0.0f), node - lo + Vec3(r, r, 0.0f), [&](std::uint32_t i) {
+          const Vec3& p = points[i];
+          if ((p.x() - node.x()) * (p.x() - node.x()) + (p.y() - node.y()) * (p.y() - node.y()) > r * r) return;
+          const std::size_t w = i / 64;
+          count += (marks[w] >> (i % 64) & 1u) == 0;
+          marks[w] |= std::uint64_t{1} << (i % 64);
+          first_word = std::min(first_word, w);
+          last_word = std::max(last_word, w);
+        });
+        if (count == 0) continue;
+        std::vector<std::uint32_t> members;
+        if (count >= min_size) members.reserve(count);
+        for (std::size_t w = first_word; w <= last_word; ++w) {
+          for (std::uint64_t bits = marks[w]; bits != 0 && count >= min_size; bits &= bits - 1)
+            members.push_back(static_cast<std::uint32_t>(64 * w + std::size_t(std::countr_zero(bits))));
+          marks[w] = 0;
         }
-      if (members.size() < min_size) continue;
-      std::sort(members.begin(), members.end());
-      columns[static_cast<std::size_t>(gx)].push_back(std::move(members));
-    }
+        if (count >= min_size) columns[static_cast<std::size_t>(gx)].push_back(std::move(members));
+      }
   });
   for (auto& column : columns)
     for (auto& g : column) groups.push_back(std::move(g));

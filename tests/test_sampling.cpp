@@ -148,3 +148,42 @@ TEST(VoxelSubsample, OnePointPerCubeNearestItsCentroid) {
     EXPECT_EQ(voxelSubsample(with_stray, voxel), expected) << "voxel " << voxel;
   }
 }
+
+// The sub-groups of 5.2.3-5.2.4 against a direct reading of their definition: a node every eta
+// over the x-y bounds (column by column), each node's group the points within r of it in x-y in
+// index order, groups under min_size left out, and the rest ordered closest to the mean size
+// first (ties in node order). Wide circles (r > eta), gaps (r < eta), and a radius so small
+// against the scene that the cells are wider than r.
+TEST(SubGroups, EachNodeHoldsThePointsWithinRadius) {
+  Rng rng(9);
+  Points points;
+  for (int i = 0; i < 3000; ++i)
+    points.emplace_back(float(300 * rng.uniform() - 120), float(200 * rng.uniform() + 40), float(50 * rng.uniform()));
+  for (int i = 0; i < 300; ++i) points.push_back(points[rng.below(points.size())]);  // duplicates
+  Vec3 lo, hi;
+  ASSERT_TRUE(bounds(points, lo, hi));
+  for (int gx = 0; gx < 7; ++gx)  // points within 0.1 mm of some nodes 40 mm apart
+    for (int gy = 0; gy < 5; gy += 1 + gx % 2) points.push_back(lo + Vec3(40.0f * float(gx) + 0.05f, 40.0f * float(gy) + 0.02f, 7.0f));
+  struct Case { float eta, r; std::size_t min_size; };
+  for (const Case c : {Case{15.0f, 25.0f, 6}, Case{20.0f, 8.0f, 3}, Case{40.0f, 0.1f, 1}, Case{15.0f, 25.0f, 100}}) {
+    std::vector<std::vector<std::uint32_t>> expected;
+    for (long gx = 0; gx <= long(std::floor((hi.x() - lo.x()) / c.eta)); ++gx)
+      for (long gy = 0; gy <= long(std::floor((hi.y() - lo.y()) / c.eta)); ++gy) {
+        const Vec3 node = lo + Vec3(float(gx) * c.eta, float(gy) * c.eta, 0.0f);
+        std::vector<std::uint32_t> members;
+        for (std::uint32_t i = 0; i < points.size(); ++i) {
+          const float dx = points[i].x() - node.x(), dy = points[i].y() - node.y();
+          if (dx * dx + dy * dy <= c.r * c.r) members.push_back(i);
+        }
+        if (members.size() >= c.min_size) expected.push_back(members);
+      }
+    double mean = 0;
+    for (const auto& g : expected) mean += double(g.size()) / double(expected.size());
+    std::stable_sort(expected.begin(), expected.end(), [&](const auto& a, const auto& b) {
+      return std::abs(double(a.size()) - mean) < std::abs(double(b.size()) - mean);
+    });
+    const auto groups = makeSubGroups(points, c.eta, c.r, c.min_size);
+    EXPECT_GT(groups.size(), 3u) << "eta " << c.eta << " r " << c.r;
+    EXPECT_EQ(groups, expected) << "eta " << c.eta << " r " << c.r;
+  }
+}
