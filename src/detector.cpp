@@ -3,6 +3,7 @@
 
 #include <binpose/clique.hpp>
 #include <binpose/geometry.hpp>
+#include <binpose/normals.hpp>
 #include <binpose/planes.hpp>
 #include <binpose/refine.hpp>
 #include <binpose/scene.hpp>
@@ -389,20 +390,24 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   const DetectionParams& p = params_;
   const Points& model = db_.model().points;
 
-  // The scan's grid (one core) is built while the other core sub-samples and indexes a depth
-  // image's points by pixel (most normals' neighbours are found there). A depth image's cells
-  // are sized from its pixel neighbours' spacing (no first grid to estimate it); any size gives
-  // the same answers.
+  // The scan's grid (one core) is built while the other core sub-samples, indexes a depth
+  // image's points by pixel and starts on the normals whose neighbours the pixels give (most of
+  // them; the first core joins in when the grid is done); the rest are found through the grid
+  // after. A depth image's cells are sized from its pixel neighbours' spacing (no first grid to
+  // estimate it); any size gives the same answers.
   std::optional<PointGrid> grid;
   std::optional<PixelNeighbours> pixels;
-  std::vector<std::uint32_t> chosen;
+  std::vector<std::uint32_t> chosen, deferred;
+  Points normals;
   tbb::parallel_invoke([&] { grid.emplace(scan.points, 2.0f * pixelSpacing(scan)); },
                        [&] {
                          chosen = subsampleScene(scan.points, p);
                          pixels.emplace(scan);
+                         normals = pixelNormals(*pixels, scan.points, chosen, p.k_normals, p.viewpoint, deferred);
                        });
   const PointGrid& scan_grid = *grid;
-  PreparedScene scene = prepareScene(scan.points, scan_grid, chosen, p, &*pixels);
+  finishNormals(scan_grid, scan.points, chosen, deferred, p.k_normals, p.viewpoint, normals);
+  PreparedScene scene = orientedScene(scan.points, chosen, normals);
   result.sampled_points = scene.points.size();
   // The bin's planes and the score's view of the scan side by side, then the sub-groups and the
   // local voters' setup.

@@ -76,13 +76,16 @@ Vec3 normalFrom(const Points& cloud, const Vec3& q, std::uint32_t* idx, std::siz
 }
 
 /// The normals of `count` queries (query(i): the point; not finite, no normal), each from the
-/// neighbours nearest(i, q, idx, dist) writes to idx (returning how many, up to k): what both
-/// estimateNormals below share, the checks, the threads and each thread's buffers.
-template <class Query, class Nearest>
-Points planeFitNormals(std::size_t count, const Points& cloud, int k, const Vec3& viewpoint, Query query, Nearest nearest) {
+/// neighbours nearest(i, q, idx, dist) writes to idx (returning how many, up to k; kLater: not
+/// now), given to store(i, normal): what the normal estimates share, the checks, the threads
+/// and each thread's buffers.
+constexpr std::size_t kLater = ~std::size_t{0};
+
+template <class Query, class Nearest, class Store>
+void planeFitNormals(std::size_t count, const Points& cloud, int k, const Vec3& viewpoint, Query query, Nearest nearest,
+                     Store store) {
   if (k < 3) throw Error(fmt::format("normal estimation needs k >= 3 neighbours, got {}", k));
-  Points normals(count, Vec3::Zero());
-  if (cloud.size() < 3) return normals;
+  if (cloud.size() < 3) return;
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 256), [&](const auto& range) {
     std::vector<std::uint32_t> idx(static_cast<std::size_t>(k));
     std::vector<float> dist(static_cast<std::size_t>(k));
@@ -90,28 +93,63 @@ Points planeFitNormals(std::size_t count, const Points& cloud, int k, const Vec3
       const Vec3& q = query(i);
       if (!q.allFinite()) continue;
       const std::size_t found = nearest(i, q, idx.data(), dist.data());
-      normals[i] = normalFrom(cloud, q, idx.data(), found, viewpoint);
+      if (found != kLater) store(i, normalFrom(cloud, q, idx.data(), found, viewpoint));
     }
   });
-  return normals;
 }
 
 }  // namespace
 
 Points estimateNormals(const PointGrid& grid, const Points& cloud, const Points& queries, int k, const Vec3& viewpoint) {
-  return planeFitNormals(
+  Points normals(queries.size(), Vec3::Zero());
+  planeFitNormals(
       queries.size(), cloud, k, viewpoint, [&](std::size_t i) -> const Vec3& { return queries[i]; },
-      [&](std::size_t, const Vec3& q, std::uint32_t* idx, float* dist) { return grid.knn(q, static_cast<std::size_t>(k), idx, dist); });
+      [&](std::size_t, const Vec3& q, std::uint32_t* idx, float* dist) { return grid.knn(q, static_cast<std::size_t>(k), idx, dist); },
+      [&](std::size_t i, const Vec3& n) { normals[i] = n; });
+  return normals;
+}
+
+Points pixelNormals(const PixelNeighbours& pixels, const Points& cloud, std::span<const std::uint32_t> chosen, int k,
+                    const Vec3& viewpoint, std::vector<std::uint32_t>& deferred) {
+  Points normals(chosen.size(), Vec3::Zero());
+  std::vector<char> later(chosen.size(), 0);
+  planeFitNormals(
+      chosen.size(), cloud, k, viewpoint, [&](std::size_t i) -> const Vec3& { return cloud[chosen[i]]; },
+      [&](std::size_t i, const Vec3&, std::uint32_t* idx, float* dist) {
+        const auto wanted = static_cast<std::size_t>(k);
+        if (pixels.knn(chosen[i], wanted, idx, dist)) return wanted;
+        later[i] = 1;
+        return kLater;
+      },
+      [&](std::size_t i, const Vec3& n) { normals[i] = n; });
+  deferred.clear();
+  for (std::size_t i = 0; i < chosen.size(); ++i)
+    if (later[i]) deferred.push_back(static_cast<std::uint32_t>(i));
+  return normals;
+}
+
+void finishNormals(const PointGrid& grid, const Points& cloud, std::span<const std::uint32_t> chosen,
+                   std::span<const std::uint32_t> deferred, int k, const Vec3& viewpoint, Points& normals) {
+  planeFitNormals(
+      deferred.size(), cloud, k, viewpoint, [&](std::size_t d) -> const Vec3& { return cloud[chosen[deferred[d]]]; },
+      [&](std::size_t, const Vec3& q, std::uint32_t* idx, float* dist) { return grid.knn(q, static_cast<std::size_t>(k), idx, dist); },
+      [&](std::size_t d, const Vec3& n) { normals[deferred[d]] = n; });
 }
 
 Points estimateNormals(const PointGrid& grid, const PixelNeighbours* pixels, const Points& cloud,
                        std::span<const std::uint32_t> chosen, int k, const Vec3& viewpoint) {
-  return planeFitNormals(
-      chosen.size(), cloud, k, viewpoint, [&](std::size_t i) -> const Vec3& { return cloud[chosen[i]]; },
-      [&](std::size_t i, const Vec3& q, std::uint32_t* idx, float* dist) {
-        const auto wanted = static_cast<std::size_t>(k);
-        return pixels != nullptr && pixels->knn(chosen[i], wanted, idx, dist) ? wanted : grid.knn(q, wanted, idx, dist);
-      });
+  if (pixels == nullptr) {
+    Points normals(chosen.size(), Vec3::Zero());
+    planeFitNormals(
+        chosen.size(), cloud, k, viewpoint, [&](std::size_t i) -> const Vec3& { return cloud[chosen[i]]; },
+        [&](std::size_t, const Vec3& q, std::uint32_t* idx, float* dist) { return grid.knn(q, static_cast<std::size_t>(k), idx, dist); },
+        [&](std::size_t i, const Vec3& n) { normals[i] = n; });
+    return normals;
+  }
+  std::vector<std::uint32_t> deferred;
+  Points normals = pixelNormals(*pixels, cloud, chosen, k, viewpoint, deferred);
+  finishNormals(grid, cloud, chosen, deferred, k, viewpoint, normals);
+  return normals;
 }
 
 }  // namespace binpose

@@ -23,9 +23,10 @@ std::uint64_t cellKey(const Vec3& p, float size, int dims) {
   return key;
 }
 
-/// The point indices grouped by voxel (cubes of side `voxel` at floor(p / voxel)), each voxel's
-/// in increasing order; `first` marks where each voxel's run starts (and ends the last).
-void groupByVoxel(const Points& points, float voxel, std::vector<std::uint32_t>& order, std::vector<std::uint32_t>& first) {
+/// Each point's voxel (cubes of side `voxel` at floor(p / voxel)) as a number from 0, given in
+/// the order the voxels are first met in index order; returns how many voxels there are.
+std::size_t voxelIds(const Points& points, float voxel, std::vector<std::uint32_t>& voxel_of) {
+  constexpr std::uint32_t kNone = ~std::uint32_t{0};
   const std::size_t n = points.size();
   std::vector<Eigen::Vector3i> cell(n);
   Eigen::Vector3i lo = Eigen::Vector3i::Constant(INT32_MAX), hi = Eigen::Vector3i::Constant(INT32_MIN);
@@ -38,29 +39,28 @@ void groupByVoxel(const Points& points, float voxel, std::vector<std::uint32_t>&
     hi = hi.cwiseMax(cell[i]);
   }
   const Eigen::Vector3d size = (hi - lo).cast<double>().array() + 1.0;
-  order.resize(n);
-  first.clear();
-  if (small && size.prod() <= std::max(4.0 * double(n), double(1 << 20))) {
-    // A counting sort over the box's voxels: O(n), each voxel's points in index order.
+  voxel_of.resize(n);
+  std::uint32_t voxels = 0;
+  if (small && size.prod() <= std::max(4.0 * double(n), double(1 << 20))) {  // a dense table over the box's voxels
     const auto nx = static_cast<std::size_t>(size.x()), ny = static_cast<std::size_t>(size.y());
-    std::vector<std::uint32_t> cell_of(n), offsets;
+    std::vector<std::uint32_t> id(static_cast<std::size_t>(size.prod()), kNone);
     for (std::size_t i = 0; i < n; ++i) {
       const Eigen::Vector3i c = cell[i] - lo;
-      cell_of[i] = static_cast<std::uint32_t>((std::size_t(c.z()) * ny + std::size_t(c.y())) * nx + std::size_t(c.x()));
+      std::uint32_t& v = id[(std::size_t(c.z()) * ny + std::size_t(c.y())) * nx + std::size_t(c.x())];
+      if (v == kNone) v = voxels++;
+      voxel_of[i] = v;
     }
-    sortByCell(cell_of, static_cast<std::size_t>(size.prod()), offsets, order);
-    for (std::size_t v = 0; v + 1 < offsets.size(); ++v)
-      if (offsets[v + 1] > offsets[v]) first.push_back(offsets[v]);
   } else {  // a sparse box (a stray point far away): sorted keys
     std::vector<std::pair<std::uint64_t, std::uint32_t>> keyed(n);
     for (std::size_t i = 0; i < n; ++i) keyed[i] = {cellKey(points[i], voxel, 3), static_cast<std::uint32_t>(i)};
     std::sort(keyed.begin(), keyed.end());
     for (std::size_t i = 0; i < n; ++i) {
-      if (i == 0 || keyed[i].first != keyed[i - 1].first) first.push_back(static_cast<std::uint32_t>(i));
-      order[i] = keyed[i].second;
+      if (i > 0 && keyed[i].first != keyed[i - 1].first) ++voxels;
+      voxel_of[keyed[i].second] = voxels;
     }
+    if (n > 0) ++voxels;
   }
-  first.push_back(static_cast<std::uint32_t>(n));
+  return voxels;
 }
 
 /// The points bucketed by x-y cells of side r from lo (floor((p - lo) / r) per axis; wider in a
@@ -100,20 +100,33 @@ class XyCells {
 
 std::vector<std::uint32_t> voxelSubsample(const Points& points, float voxel) {
   if (!(voxel > 0)) throw Error(fmt::format("voxel size must be positive, got {}", voxel));
-  std::vector<std::uint32_t> order, first;
-  groupByVoxel(points, voxel, order, first);
-  std::vector<std::uint32_t> kept;  // per voxel, the point nearest its points' centroid
-  for (std::size_t v = 0; v + 1 < first.size(); ++v) {
-    const std::uint32_t a = first[v], b = first[v + 1];
-    Vec3 centroid = Vec3::Zero();
-    for (std::uint32_t i = a; i < b; ++i) centroid += points[order[i]];
-    centroid /= static_cast<float>(b - a);
-    std::uint32_t best = order[a];
-    for (std::uint32_t i = a; i < b; ++i)
-      if ((points[order[i]] - centroid).squaredNorm() < (points[best] - centroid).squaredNorm()) best = order[i];
-    kept.push_back(best);
+  // Per voxel, the point nearest its points' centroid (the first of equals). Each voxel's sums and
+  // comparisons run over its points in index order, as the points are read, with no sort.
+  constexpr std::uint32_t kNone = ~std::uint32_t{0};
+  std::vector<std::uint32_t> voxel_of;
+  const std::size_t voxels = voxelIds(points, voxel, voxel_of);
+  std::vector<Vec3> centroid(voxels, Vec3::Zero());
+  std::vector<std::uint32_t> count(voxels, 0), best(voxels, kNone);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    centroid[voxel_of[i]] += points[i];
+    ++count[voxel_of[i]];
   }
-  std::sort(kept.begin(), kept.end());
+  for (std::size_t v = 0; v < voxels; ++v) centroid[v] /= static_cast<float>(count[v]);
+  std::vector<float> best_d2(voxels);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const std::uint32_t v = voxel_of[i];
+    const float d2 = (points[i] - centroid[v]).squaredNorm();
+    if (best[v] == kNone || d2 < best_d2[v]) {
+      best[v] = static_cast<std::uint32_t>(i);
+      best_d2[v] = d2;
+    }
+  }
+  std::vector<char> chosen(points.size(), 0);
+  for (const std::uint32_t i : best) chosen[i] = 1;
+  std::vector<std::uint32_t> kept;
+  kept.reserve(voxels);
+  for (std::size_t i = 0; i < points.size(); ++i)
+    if (chosen[i]) kept.push_back(static_cast<std::uint32_t>(i));
   return kept;
 }
 
@@ -133,10 +146,8 @@ std::vector<std::uint32_t> subsampleScene(const Points& scan, const DetectionPar
   return chosen;
 }
 
-PreparedScene prepareScene(const Points& scan, const PointGrid& scan_grid, std::span<const std::uint32_t> chosen,
-                           const DetectionParams& params, const PixelNeighbours* pixels) {
+PreparedScene orientedScene(const Points& scan, std::span<const std::uint32_t> chosen, const Points& normals) {
   PreparedScene scene;
-  const Points normals = estimateNormals(scan_grid, pixels, scan, chosen, params.k_normals, params.viewpoint);
   for (std::size_t i = 0; i < chosen.size(); ++i) {
     if (normals[i].squaredNorm() < 0.5f) continue;  // degenerate neighbourhood: skipped
     scene.points.push_back(scan[chosen[i]]);
@@ -144,6 +155,11 @@ PreparedScene prepareScene(const Points& scan, const PointGrid& scan_grid, std::
     scene.scan_index.push_back(chosen[i]);
   }
   return scene;
+}
+
+PreparedScene prepareScene(const Points& scan, const PointGrid& scan_grid, std::span<const std::uint32_t> chosen,
+                           const DetectionParams& params, const PixelNeighbours* pixels) {
+  return orientedScene(scan, chosen, estimateNormals(scan_grid, pixels, scan, chosen, params.k_normals, params.viewpoint));
 }
 
 PreparedScene prepareScene(const Points& scan, const PointGrid& scan_grid, const DetectionParams& params) {

@@ -1,4 +1,5 @@
 // A depth image's nearest neighbours from its pixel neighbours, against brute force.
+#include <algorithm>
 #include <binpose/geometry.hpp>
 #include <binpose/io.hpp>
 #include <binpose/normals.hpp>
@@ -126,4 +127,14 @@ TEST(Normals, FromPixelNeighboursTheSameAsFromTheGrid) {
     missing += from_grid[i].isZero();
   }
   EXPECT_LT(missing, chosen.size() / 100);  // the comparison is of normals, not of zeros
+  // In two halves, as the detector runs them (the first before the grid is built): the points the
+  // pixels cannot answer for are left zero and listed, then given the grid's normals.
+  std::vector<std::uint32_t> deferred;
+  Points halves = pixelNormals(pixels, scene.cloud.points, chosen, 8, Vec3::Zero(), deferred);
+  EXPECT_GT(deferred.size(), 0u);
+  EXPECT_LT(deferred.size(), chosen.size() / 10);
+  EXPECT_TRUE(std::is_sorted(deferred.begin(), deferred.end()));
+  for (const auto d : deferred) EXPECT_TRUE(halves[d].isZero()) << "point " << chosen[d];
+  finishNormals(grid, scene.cloud.points, chosen, deferred, 8, Vec3::Zero(), halves);
+  EXPECT_EQ(halves, from_grid);
 }

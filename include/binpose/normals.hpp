@@ -5,6 +5,7 @@
 #include <binpose/types.hpp>
 
 #include <span>
+#include <vector>
 
 namespace binpose {
 
@@ -25,5 +26,13 @@ Points estimateNormals(const PointGrid& grid, const Points& cloud, const Points&
 /// 8.5 -> 6.8 ms on the cap bin).
 Points estimateNormals(const PointGrid& grid, const PixelNeighbours* pixels, const Points& cloud,
                        std::span<const std::uint32_t> chosen, int k, const Vec3& viewpoint);
+
+/// That estimate in two halves, the first before the grid is built: the normals of the chosen
+/// points whose k nearest `pixels` proves, with the others' places in `chosen` listed in
+/// `deferred` (in order; zero normals until finishNormals gives them theirs through the grid).
+Points pixelNormals(const PixelNeighbours& pixels, const Points& cloud, std::span<const std::uint32_t> chosen, int k,
+                    const Vec3& viewpoint, std::vector<std::uint32_t>& deferred);
+void finishNormals(const PointGrid& grid, const Points& cloud, std::span<const std::uint32_t> chosen,
+                   std::span<const std::uint32_t> deferred, int k, const Vec3& viewpoint, Points& normals);
 
 }  // namespace binpose

@@ -32,6 +32,10 @@ std::vector<std::uint32_t> subsampleScene(const Points& scan, const DetectionPar
 PreparedScene prepareScene(const Points& scan, const PointGrid& scan_grid, std::span<const std::uint32_t> chosen,
                            const DetectionParams& params, const PixelNeighbours* pixels = nullptr);
 
+/// The chosen scan points with their `normals` (one per chosen point), without those of a zero
+/// normal (a degenerate neighbourhood).
+PreparedScene orientedScene(const Points& scan, std::span<const std::uint32_t> chosen, const Points& normals);
+
 /// Sub-samples the scan to rho_sub (5.2.1): by voxels of side 1/sqrt(rho_sub), or the thesis's
 /// random selection of as many points (seeded). Normals by plane fits over k_normals neighbours
 /// in the full scan (5.2.2) through `scan_grid`, facing the viewpoint; points whose
