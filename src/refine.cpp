@@ -17,7 +17,7 @@
 namespace binpose {
 namespace {
 
-bool facesSensor(const Vec3& p, const Vec3& n, const Vec3& viewpoint) { return n.dot(viewpoint - p) > 0.0f; }
+[[maybe_unused]] bool facesSensor(const Vec3& p, const Vec3& n, const Vec3& viewpoint) { return n.dot(viewpoint - p) > 0.0f; }
 
 /// Points per task of the parallel loops: fixed, so the partial sums and their order (and so
 /// every bit of the result) are the same whatever the thread count.
@@ -400,6 +400,44 @@ Evidence SceneEvidence::evaluate(const Pose& pose, const Points& model_points, c
   // Sensor-facing points of the posed model, with their range and direction in the image frame.
   struct Facing { Vec3 p; float range, u, v; bool grazing; };
   std::vector<Facing> facing;
+#if defined(__SSE2__)
+  // Four points at a time (poseFour), each lane summed as the scalar code below sums: to_view
+  // (p - viewpoint) and the dot as a + (b + c), the norm as x^2 + (y^2 + z^2).
+  const detail::OrientedLanes lanes = lanesOf(model_points, model_normals, 1);
+  __m128 t[3][3];
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) t[r][c] = _mm_set1_ps(to_view_(r, c));
+  const __m128 cos_grazing = _mm_set1_ps(cos_grazing_);
+  for (std::size_t s = 0; s < lanes.size; s += 4) {
+    alignas(16) float pf[12], nf[12];
+    unsigned keep = poseFour(lanes, s, pose, viewpoint_, pf, nf);
+    if (s + 4 > lanes.size) keep &= (1u << (lanes.size - s)) - 1u;  // the padding
+    if (keep == 0) continue;
+    __m128 w[3], d[3], n[3];
+    for (int k = 0; k < 3; ++k) {
+      const __m128 p = _mm_load_ps(pf + 4 * k), v = _mm_set1_ps(viewpoint_[k]);
+      w[k] = _mm_sub_ps(v, p);
+      d[k] = _mm_sub_ps(p, v);
+      n[k] = _mm_load_ps(nf + 4 * k);
+    }
+    __m128 q[3];
+    for (int r = 0; r < 3; ++r)
+      q[r] = _mm_add_ps(_mm_mul_ps(t[r][0], d[0]), _mm_add_ps(_mm_mul_ps(t[r][1], d[1]), _mm_mul_ps(t[r][2], d[2])));
+    keep &= static_cast<unsigned>(_mm_movemask_ps(_mm_cmpnle_ps(q[2], _mm_setzero_ps())));  // !(q.z <= 0)
+    if (keep == 0) continue;
+    const __m128 range = _mm_sqrt_ps(_mm_add_ps(_mm_mul_ps(q[0], q[0]), _mm_add_ps(_mm_mul_ps(q[1], q[1]), _mm_mul_ps(q[2], q[2]))));
+    const __m128 dot = _mm_add_ps(_mm_mul_ps(n[0], w[0]), _mm_add_ps(_mm_mul_ps(n[1], w[1]), _mm_mul_ps(n[2], w[2])));
+    const unsigned grazing = static_cast<unsigned>(_mm_movemask_ps(_mm_cmplt_ps(dot, _mm_mul_ps(cos_grazing, range))));
+    alignas(16) float ranges[4], u[4], v[4];
+    _mm_store_ps(ranges, range);
+    _mm_store_ps(u, _mm_div_ps(q[0], q[2]));
+    _mm_store_ps(v, _mm_div_ps(q[1], q[2]));
+    for (; keep; keep &= keep - 1) {
+      const int l = std::countr_zero(keep);
+      facing.push_back({Vec3(pf[l], pf[4 + l], pf[8 + l]), ranges[l], u[l], v[l], (grazing >> l & 1u) != 0});
+    }
+  }
+#else
   for (std::size_t i = 0; i < model_points.size(); ++i) {
     const Vec3 p = pose * model_points[i];
     const Vec3 n = pose.linear() * model_normals[i];
@@ -409,6 +447,7 @@ Evidence SceneEvidence::evaluate(const Pose& pose, const Points& model_points, c
     const float range = q.norm();  // the normal is of unit length: its dot is the incidence's cosine times range
     facing.push_back({p, range, q.x() / q.z(), q.y() / q.z(), n.dot(viewpoint_ - p) < cos_grazing_ * range});
   }
+#endif
   // The model's own z-buffer on cells of two sample spacings: a facing point with the model's
   // surface clearly in front of it is hidden by the part itself and is not expected in the scan.
   std::optional<ZBuffer> front;
