@@ -7,6 +7,7 @@
 #include "oriented_lanes.hpp"
 
 #include <cmath>
+#include <numeric>
 #include <fmt/format.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_group.h>
@@ -18,31 +19,97 @@ bool onPlane(const Vec3& p, const Vec3& n, const Plane& plane, float tolerance, 
   return plane.distance(p) <= tolerance && std::abs(plane.normal.dot(n)) >= min_cos;
 }
 
-/// Connected patches of `members` (links shorter than `link`), as lists of indices into points.
+/// Connected patches of `members` (links shorter than `link`), as lists of indices into points:
+/// the components of a union-find over the pairs closer than `link`, each pair looked at once,
+/// in cells a little wider than `link` (a linked pair lies in the same or neighbouring cells).
+/// The distances are PointGrid's (x^2 + (y^2 + z^2) of the difference, strictly under link^2).
 std::vector<std::vector<std::uint32_t>> patches(const Points& points, const std::vector<std::uint32_t>& members, float link) {
-  Points sub;
-  for (const auto i : members) sub.push_back(points[i]);
-  const PointGrid grid(sub, link);
-  std::vector<char> seen(sub.size(), 0);
+  const std::size_t n = members.size();
   std::vector<std::vector<std::uint32_t>> out;
-  std::vector<std::uint32_t> stack, found;
-  for (std::uint32_t s = 0; s < sub.size(); ++s) {
-    if (seen[s]) continue;
-    std::vector<std::uint32_t> patch;
-    seen[s] = 1;
-    stack.assign(1, s);
-    while (!stack.empty()) {  // flood fill
-      const std::uint32_t a = stack.back();
-      stack.pop_back();
-      patch.push_back(members[a]);
-      grid.within(sub[a], link, found);
-      for (const auto b : found)
-        if (!seen[b]) {
-          seen[b] = 1;
-          stack.push_back(b);
-        }
+  if (n == 0) return out;
+  Vec3 lo = points[members[0]], hi = lo;
+  for (const auto i : members) {
+    lo = lo.cwiseMin(points[i]);
+    hi = hi.cwiseMax(points[i]);
+  }
+  const float side = std::max(1.001f * link, 1e-6f * (hi - lo).maxCoeff());
+  const Eigen::Array3d cells = ((hi - lo) / side).cast<double>().array().floor() + 1.0;
+  if (cells.prod() > std::max(8.0 * double(n), double(1 << 20))) {  // a sparse box: the grid's flood fill
+    Points sub;
+    for (const auto i : members) sub.push_back(points[i]);
+    const PointGrid grid(sub, link);
+    std::vector<char> seen(n, 0);
+    std::vector<std::uint32_t> stack, found;
+    for (std::uint32_t s = 0; s < n; ++s) {
+      if (seen[s]) continue;
+      std::vector<std::uint32_t> patch;
+      seen[s] = 1;
+      stack.assign(1, s);
+      while (!stack.empty()) {
+        const std::uint32_t a = stack.back();
+        stack.pop_back();
+        patch.push_back(members[a]);
+        grid.within(sub[a], link, found);
+        for (const auto b : found)
+          if (!seen[b]) {
+            seen[b] = 1;
+            stack.push_back(b);
+          }
+      }
+      out.push_back(std::move(patch));
     }
-    out.push_back(std::move(patch));
+    return out;
+  }
+  const auto nx = static_cast<std::size_t>(cells.x()), ny = static_cast<std::size_t>(cells.y()),
+             nz = static_cast<std::size_t>(cells.z());
+  std::vector<std::uint32_t> cell_of(n), offsets, order;
+  auto cellOf = [&](const Vec3& p, std::size_t axis) {
+    return std::min(static_cast<std::size_t>(std::max(0.0f, std::floor((p[axis] - lo[axis]) / side))),
+                    (axis == 0 ? nx : axis == 1 ? ny : nz) - 1);
+  };
+  for (std::size_t k = 0; k < n; ++k) {
+    const Vec3& p = points[members[k]];
+    cell_of[k] = static_cast<std::uint32_t>((cellOf(p, 2) * ny + cellOf(p, 1)) * nx + cellOf(p, 0));
+  }
+  sortByCell(cell_of, nx * ny * nz, offsets, order);
+  std::vector<std::uint32_t> parent(n);
+  std::iota(parent.begin(), parent.end(), 0u);
+  auto root = [&](std::uint32_t a) {
+    while (parent[a] != a) a = parent[a] = parent[parent[a]];
+    return a;
+  };
+  const float limit = link * link;
+  auto linkCells = [&](std::size_t a, std::size_t b) {  // every pair of a point of cell a and one of cell b
+    for (std::uint32_t s = offsets[a]; s < offsets[a + 1]; ++s)
+      for (std::uint32_t t = a == b ? s + 1 : offsets[b]; t < offsets[b + 1]; ++t) {
+        const Vec3 d = points[members[order[t]]] - points[members[order[s]]];
+        if (d.x() * d.x() + (d.y() * d.y() + d.z() * d.z()) >= limit) continue;
+        const std::uint32_t ra = root(order[s]), rb = root(order[t]);
+        if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
+      }
+  };
+  for (std::size_t z = 0; z < nz; ++z)
+    for (std::size_t y = 0; y < ny; ++y)
+      for (std::size_t x = 0; x < nx; ++x) {
+        const std::size_t a = (z * ny + y) * nx + x;
+        if (offsets[a] == offsets[a + 1]) continue;
+        // The cell itself and its 13 neighbours that come after it in (z, y, x) order.
+        for (int dz = 0; dz <= 1; ++dz)
+          for (int dy = dz == 0 ? 0 : -1; dy <= 1; ++dy)
+            for (int dx = dz == 0 && dy == 0 ? 0 : -1; dx <= 1; ++dx) {
+              const std::ptrdiff_t bx = std::ptrdiff_t(x) + dx, by = std::ptrdiff_t(y) + dy, bz = std::ptrdiff_t(z) + dz;
+              if (bx < 0 || by < 0 || bx >= std::ptrdiff_t(nx) || by >= std::ptrdiff_t(ny) || bz >= std::ptrdiff_t(nz)) continue;
+              linkCells(a, (std::size_t(bz) * ny + std::size_t(by)) * nx + std::size_t(bx));
+            }
+      }
+  std::vector<std::uint32_t> patch_of(n, ~std::uint32_t{0});
+  for (std::uint32_t k = 0; k < n; ++k) {
+    std::uint32_t& p = patch_of[root(k)];
+    if (p == ~std::uint32_t{0}) {
+      p = static_cast<std::uint32_t>(out.size());
+      out.emplace_back();
+    }
+    out[p].push_back(members[k]);
   }
   return out;
 }

@@ -93,3 +93,26 @@ TEST(Planes, AbsurdInputIsRefused) {
   EXPECT_THROW((void)largePlanes(bin.points, fewer, 0.0625f, PlaneParams{}), Error);
   EXPECT_TRUE(largePlanes({}, {}, 0.0625f, PlaneParams{}).empty());
 }
+
+// A plane's inliers are split into patches joined by links shorter than PlaneParams::link
+// (10 mm), and only a patch of min_area goes. Two strips of a tilted plane (4000 mm^2 each,
+// 8000 together against a min_area of 6000), a gap between them: 9.5 mm joins them and both go,
+// 10.5 mm leaves two patches too small to go.
+TEST(Planes, PatchesJoinAcrossGapsShorterThanTheLink) {
+  const Vec3 e1(1, 0, 0), e2(0, 0.8f, 0.6f), normal(0, 0.6f, -0.8f), origin(-50, -40, 500);
+  for (const float gap : {9.5f, 10.5f}) {
+    Points points, normals;
+    for (float u = 0; u <= 100; u += kSpacing)
+      for (const float start : {0.0f, 40.0f + gap})
+        for (float v = 0; v <= 40; v += kSpacing) {
+          points.push_back(origin + u * e1 + (start + v) * e2);
+          normals.push_back(normal);
+        }
+    const std::vector<char> flat = largePlanes(points, normals, 1.0f / (kSpacing * kSpacing), PlaneParams{});
+    const auto removed = std::count(flat.begin(), flat.end(), 1);
+    if (gap < PlaneParams{}.link)
+      EXPECT_EQ(removed, static_cast<long>(points.size())) << "gap " << gap;
+    else
+      EXPECT_EQ(removed, 0) << "gap " << gap;
+  }
+}
