@@ -96,7 +96,8 @@ struct Slot {
 struct Matcher {
   const ModelDatabase& db;
   const DetectionParams& p;
-  const OrientedPoints& icp_model;
+  const PreparedModel& icp_model;   ///< ICP's share of the model points
+  const PreparedModel& scored_model;  ///< all of them, for the score
   const PreparedScene& scene;
   const PointCloud& scan;
   const PointGrid& scan_grid;
@@ -252,7 +253,7 @@ struct Matcher {
     const bool second_pass = s.outcome.all_voters;
     const float gate = second_pass ? std::max(p.min_score, p.retry_min_score) : p.min_score;
     auto prescore = [&](const Pose& pose) {
-      const Evidence e = evidence.evaluate(pose, icp_model.points, icp_model.normals, p.icp_max_distance, 0.0f);
+      const Evidence e = evidence.evaluate(pose, icp_model, p.icp_max_distance, 0.0f);
       return second_pass ? e.scoreWithoutGrazing() : e.score();
     };
     if (p.verify) {  // the scan decides between a clique's poses, and screens out one far from it
@@ -267,7 +268,7 @@ struct Matcher {
         if (p.prescreen_retry_steps > 0 && best >= p.prescreen_retry_share * gate) {
           // Near the scan but a few mm off: a few coarse ICP steps, and another look.
           const IcpParams nudge{p.prescreen_retry_steps, p.icp_max_distance, p.verify_tolerance, p.viewpoint, {}, nullptr};
-          const Pose moved = refinePose(det.pose, icp_model.points, icp_model.normals, scan.points, scan_grid, nudge);
+          const Pose moved = refinePose(det.pose, icp_model, scan.points, scan_grid, nudge);
           if (const float score = prescore(moved); score >= gate) {
             best = score;
             det.pose = moved;
@@ -285,13 +286,13 @@ struct Matcher {
         icp.path = &s.outcome.path;
         icp.stop = found;
       }
-      det.pose = refinePose(det.pose, icp_model.points, icp_model.normals, scan.points, scan_grid, icp);
+      det.pose = refinePose(det.pose, icp_model, scan.points, scan_grid, icp);
       if (p.verify && p.refound_share > 0 && found(det.pose)) {
         s.outcome.refound = true;
         return;
       }
     }
-    const Evidence e = evidence.evaluate(det.pose, db.model().points, db.model().normals, p.verify_tolerance,
+    const Evidence e = evidence.evaluate(det.pose, scored_model, p.verify_tolerance,
                                          db.model().sample_radius, &h.support);
     det.score = e.score();
     s.outcome.score_without_grazing = e.scoreWithoutGrazing();
@@ -304,7 +305,11 @@ struct Matcher {
 
 Detector::Detector(const ModelDatabase& db, const DetectionParams& params)
     : db_(db), params_(params), model_grid_(db.model().points, std::max(params.sigma_dist, 0.1f * db.model().diameter)),
-      icp_model_(evenShare(db.model().points, db.model().normals, static_cast<std::size_t>(std::max(0, params.icp_model_points)))) {
+      icp_model_([&] {
+        OrientedPoints share = evenShare(db.model().points, db.model().normals, static_cast<std::size_t>(std::max(0, params.icp_model_points)));
+        return PreparedModel(std::move(share.points), std::move(share.normals));
+      }()),
+      scored_model_(db.model().points, db.model().normals) {
   validate(params_);
   if (params_.plane_min_area == 0) params_.plane_min_area = boundingFaceArea(db.model().points);
   const Points& m = db.model().points;
@@ -346,7 +351,7 @@ bool Detector::samePose(const Pose& a, const Pose& b, float share) const {
 
 bool Detector::mostlyOverlaps(const Pose& a, const Pose& b) const {
   if ((a * model_centroid_ - b * model_centroid_).norm() > 2 * model_radius_) return false;
-  const Points& model = icp_model_.points;  // an even share: the same fraction as all points
+  const Points& model = icp_model_.points();  // an even share: the same fraction as all points
   const Pose b_from_a = b.inverse() * a;
   const float near_distance = 0.1f * db_.model().diameter;  // the usual correctness radius (ADD < 0.1 d)
   const std::size_t half = model.size() / 2;
@@ -455,7 +460,7 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   auto seen = [&](const Pose& pose) {
     return std::any_of(found.begin(), found.end(), [&](const Pose& f) { return samePose(pose, f); }) || std::any_of(tried.begin(), tried.end(), [&](const Pose& t) { return samePose(pose, t, p.tried_share); });
   };
-  const Matcher matcher{db_, p,       icp_model_,      scene,   scan, scan_grid, evidence, local.get(), may_vote,
+  const Matcher matcher{db_, p,       icp_model_, scored_model_, scene,   scan, scan_grid, evidence, local.get(), may_vote,
                         orbits(), cyclicSymmetry(), seen, refound};
   std::vector<char> removed(scene.points.size(), 0);
   std::vector<Hypothesis> hypotheses;

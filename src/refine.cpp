@@ -9,6 +9,7 @@
 #include <bit>
 #include <cmath>
 #include <optional>
+#include <fmt/format.h>
 #include <tbb/parallel_for.h>
 #if defined(__SSE2__)
 #include <immintrin.h>
@@ -124,6 +125,9 @@ constexpr std::size_t kCoarseStride = 4;
 constexpr double kCoarseConverged = 0.05;
 constexpr int kCoarseSteps = 6;
 
+/// The stride of ICP's first steps for a model of `points` points (1: too few to thin).
+std::size_t coarseStride(std::size_t points) { return points >= 64 * kCoarseStride ? kCoarseStride : 1; }
+
 /// ICP also stops when a step below this, mm, moves the pose no less than the step before: the
 /// pairs then flip back and forth between two sets (a limit cycle), and the pose with them.
 constexpr double kStalled = 0.01;
@@ -216,19 +220,37 @@ OrientedPoints evenShare(const Points& points, const Points& normals, std::size_
   return out;
 }
 
+PreparedModel::PreparedModel(Points points, Points normals)
+    : points_(std::move(points)), normals_(std::move(normals)), centre_(Vec3::Zero()), reach_(0) {
+  if (points_.size() != normals_.size())
+    throw Error(fmt::format("a model needs one normal per point, got {} points and {} normals", points_.size(), normals_.size()));
+  for (const Vec3& m : points_) centre_ += m;
+  centre_ /= static_cast<float>(std::max<std::size_t>(1, points_.size()));
+  for (const Vec3& m : points_) reach_ = std::max(reach_, double((m - centre_).norm()));
+  reach_ = std::max(reach_, 1e-3);
+  lanes_ = std::make_unique<detail::OrientedLanes>(lanesOf(points_, normals_, 1));
+  coarse_ = std::make_unique<detail::OrientedLanes>(lanesOf(points_, normals_, coarseStride(points_.size())));
+}
+
+PreparedModel::~PreparedModel() = default;
+PreparedModel::PreparedModel(PreparedModel&&) noexcept = default;
+PreparedModel& PreparedModel::operator=(PreparedModel&&) noexcept = default;
+
 Pose refinePose(const Pose& pose, const Points& model_points, const Points& model_normals, const Points& scan,
                 const PointGrid& scan_grid, const IcpParams& params) {
-  Vec3 model_centre = Vec3::Zero();
-  for (const Vec3& m : model_points) model_centre += m;
-  model_centre /= static_cast<float>(std::max<std::size_t>(1, model_points.size()));
-  double length = 0;  // the part's reach from its centre: rotations in mm at its edge
-  for (const Vec3& m : model_points) length = std::max(length, double((m - model_centre).norm()));
-  length = std::max(length, 1e-3);
+  return refinePose(pose, PreparedModel(model_points, model_normals), scan, scan_grid, params);
+}
+
+Pose refinePose(const Pose& pose, const PreparedModel& model, const Points& scan, const PointGrid& scan_grid,
+                const IcpParams& params) {
+  const Points& model_points = model.points();
+  const Vec3& model_centre = model.centre();
+  const double length = model.reach();  // the part's reach from its centre: rotations in mm at its edge
   Pose current = pose;
   float gate = params.max_distance;
   std::vector<NormalEquations> parts((model_points.size() + kChunk - 1) / kChunk);
-  std::size_t stride = model_points.size() >= 64 * kCoarseStride ? kCoarseStride : 1;
-  const detail::OrientedLanes all = lanesOf(model_points, model_normals, 1), coarse = lanesOf(model_points, model_normals, stride);
+  std::size_t stride = coarseStride(model_points.size());
+  const detail::OrientedLanes &all = model.lanes(), &coarse = model.coarseLanes();
   // Each model point's scan pair of the step before: the pairs move little from step to step, so
   // the nearest lies no farther than the old pair, and a search of that small box finds it (the
   // same pair as a search out to the gate).
@@ -397,13 +419,18 @@ long SceneEvidence::cellAt(float u, float v) const {
 
 Evidence SceneEvidence::evaluate(const Pose& pose, const Points& model_points, const Points& model_normals,
                                  float tolerance, float model_spacing, std::vector<std::uint32_t>* support) const {
+  return evaluate(pose, PreparedModel(model_points, model_normals), tolerance, model_spacing, support);
+}
+
+Evidence SceneEvidence::evaluate(const Pose& pose, const PreparedModel& model, float tolerance, float model_spacing,
+                                 std::vector<std::uint32_t>* support) const {
   // Sensor-facing points of the posed model, with their range and direction in the image frame.
   struct Facing { Vec3 p; float range, u, v; bool grazing; };
   std::vector<Facing> facing;
 #if defined(__SSE2__)
   // Four points at a time (poseFour), each lane summed as the scalar code below sums: to_view
   // (p - viewpoint) and the dot as a + (b + c), the norm as x^2 + (y^2 + z^2).
-  const detail::OrientedLanes lanes = lanesOf(model_points, model_normals, 1);
+  const detail::OrientedLanes& lanes = model.lanes();
   __m128 t[3][3];
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) t[r][c] = _mm_set1_ps(to_view_(r, c));
@@ -438,6 +465,7 @@ Evidence SceneEvidence::evaluate(const Pose& pose, const Points& model_points, c
     }
   }
 #else
+  const Points &model_points = model.points(), &model_normals = model.normals();
   for (std::size_t i = 0; i < model_points.size(); ++i) {
     const Vec3 p = pose * model_points[i];
     const Vec3 n = pose.linear() * model_normals[i];

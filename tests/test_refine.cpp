@@ -157,5 +157,21 @@ TEST(SceneEvidence, PixelNeighboursGiveTheSameEvidenceAsTheGrid) {
   EXPECT_GT(contradicted, 0);  // the range image was asked
 }
 
+// A model made ready once (PreparedModel) holds its centre and reach as ICP linearises about
+// them, and refuses points without normals.
+TEST(PreparedModel, CentreReachAndBadInput) {
+  const OrientedModel box = prepareModel(builtinPart("box"), ModelParams{});  // 60 x 40 x 20, centred
+  const PreparedModel prepared(box.points, box.normals);
+  Vec3 centre = Vec3::Zero();
+  for (const Vec3& p : box.points) centre += p;
+  centre /= float(box.points.size());
+  EXPECT_LT((prepared.centre() - centre).norm(), 1e-3f);
+  EXPECT_NEAR(prepared.reach(), std::sqrt(30.0 * 30 + 20 * 20 + 10 * 10), 0.5);  // a corner of the box
+  EXPECT_EQ(prepared.points().size(), box.points.size());
+  Points fewer = box.normals;
+  fewer.pop_back();
+  EXPECT_THROW(PreparedModel(box.points, fewer), Error);
+}
+
 }  // namespace
 }  // namespace binpose

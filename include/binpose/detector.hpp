@@ -83,7 +83,8 @@ class Detector {
   const ModelDatabase& db_;
   DetectionParams params_;
   PointGrid model_grid_;  ///< the model points, cells of sigma_dist: nearModel's queries
-  OrientedPoints icp_model_;  ///< the model points ICP pairs up (icp_model_points of them)
+  PreparedModel icp_model_;  ///< the model points ICP pairs up (icp_model_points of them)
+  PreparedModel scored_model_;  ///< all the model points, for the score
   Vec3 model_centroid_;
   float model_radius_ = 0;  ///< largest distance of a model point from the centroid
   Vec3 model_lo_, model_hi_;  ///< the model points' bounding box
