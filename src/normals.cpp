@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <fmt/format.h>
+#include <numeric>
 #include <tbb/parallel_for.h>
 
 namespace binpose {
@@ -138,16 +139,16 @@ void finishNormals(const PointGrid& grid, const Points& cloud, std::span<const s
 
 Points estimateNormals(const PointGrid& grid, const PixelNeighbours* pixels, const Points& cloud,
                        std::span<const std::uint32_t> chosen, int k, const Vec3& viewpoint) {
-  if (pixels == nullptr) {
-    Points normals(chosen.size(), Vec3::Zero());
-    planeFitNormals(
-        chosen.size(), cloud, k, viewpoint, [&](std::size_t i) -> const Vec3& { return cloud[chosen[i]]; },
-        [&](std::size_t, const Vec3& q, std::uint32_t* idx, float* dist) { return grid.knn(q, static_cast<std::size_t>(k), idx, dist); },
-        [&](std::size_t i, const Vec3& n) { normals[i] = n; });
-    return normals;
-  }
+  // Without pixels every point is left to the grid.
   std::vector<std::uint32_t> deferred;
-  Points normals = pixelNormals(*pixels, cloud, chosen, k, viewpoint, deferred);
+  Points normals;
+  if (pixels != nullptr) {
+    normals = pixelNormals(*pixels, cloud, chosen, k, viewpoint, deferred);
+  } else {
+    normals.assign(chosen.size(), Vec3::Zero());
+    deferred.resize(chosen.size());
+    std::iota(deferred.begin(), deferred.end(), 0u);
+  }
   finishNormals(grid, cloud, chosen, deferred, k, viewpoint, normals);
   return normals;
 }

@@ -14,9 +14,10 @@
 namespace binpose {
 namespace {
 
-std::uint64_t cellKey(const Vec3& p, float size, int dims) {
+/// The key of p's cube of side `size`: 21 bits per axis, x first.
+std::uint64_t cellKey(const Vec3& p, float size) {
   std::uint64_t key = 0;
-  for (int k = 0; k < dims; ++k) {
+  for (int k = 0; k < 3; ++k) {
     const auto c = static_cast<std::int64_t>(std::floor(p[k] / size)) + (1 << 20);  // 21 bits per axis
     key = (key << 21) | (static_cast<std::uint64_t>(c) & 0x1FFFFF);
   }
@@ -52,7 +53,7 @@ std::size_t voxelIds(const Points& points, float voxel, std::vector<std::uint32_
     }
   } else {  // a sparse box (a stray point far away): sorted keys
     std::vector<std::pair<std::uint64_t, std::uint32_t>> keyed(n);
-    for (std::size_t i = 0; i < n; ++i) keyed[i] = {cellKey(points[i], voxel, 3), static_cast<std::uint32_t>(i)};
+    for (std::size_t i = 0; i < n; ++i) keyed[i] = {cellKey(points[i], voxel), static_cast<std::uint32_t>(i)};
     std::sort(keyed.begin(), keyed.end());
     for (std::size_t i = 0; i < n; ++i) {
       if (i > 0 && keyed[i].first != keyed[i - 1].first) ++voxels;
