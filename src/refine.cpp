@@ -158,39 +158,53 @@ Eigen::Matrix<double, 6, 1> constrainedStep(const Eigen::Matrix<double, 6, 6>& A
   return scale.asDiagonal() * y;
 }
 
+#if defined(__SSE2__)
+/// The image frame's rotation on SIMD lanes: four points' image-frame coordinates and ranges,
+/// summed as Eigen sums a 3 x 3 matrix times a vector, a + (b + c), and a norm,
+/// sqrt(x^2 + (y^2 + z^2)) (both checked bit for bit against Eigen on 5 million random cases;
+/// the other orders differed in 4-30% of them).
+struct ViewLanes {
+  __m128 t[3][3];
+  explicit ViewLanes(const Eigen::Matrix3f& to_view) {
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) t[r][c] = _mm_set1_ps(to_view(r, c));
+  }
+  /// q = to_view d, for d = p - viewpoint.
+  void rotate(const __m128 (&d)[3], __m128 (&q)[3]) const {
+    for (int r = 0; r < 3; ++r)
+      q[r] = _mm_add_ps(_mm_mul_ps(t[r][0], d[0]), _mm_add_ps(_mm_mul_ps(t[r][1], d[1]), _mm_mul_ps(t[r][2], d[2])));
+  }
+  static __m128 norm(const __m128 (&q)[3]) {
+    return _mm_sqrt_ps(_mm_add_ps(_mm_mul_ps(q[0], q[0]), _mm_add_ps(_mm_mul_ps(q[1], q[1]), _mm_mul_ps(q[2], q[2]))));
+  }
+};
+#endif
+
 /// The scan points in front of the sensor (z > 0 in the image frame), each as its direction in
 /// the image (u, v: x / z and y / z) and its range, in the scan's order.
 struct Projected {
   std::vector<float> u, v, range;
 };
 
-/// Projected's entries of every scan point, four at a time where SSE allows: each row of
-/// to_view (p - viewpoint) summed as Eigen sums a 3 x 3 matrix times a vector, a + (b + c), and
-/// the range as its norm, sqrt(x^2 + (y^2 + z^2)) (both checked bit for bit against Eigen on
-/// 5 million random cases; the other orders differed in 4-30% of them).
+/// Projected's entries of every scan point, four at a time where SSE allows (ViewLanes: the
+/// same sums as the scalar code).
 void projectAll(const Points& scan, const Vec3& viewpoint, const Eigen::Matrix3f& to_view, Projected& out) {
   out.u.reserve(scan.size());
   out.v.reserve(scan.size());
   out.range.reserve(scan.size());
   std::size_t i = 0;
 #if defined(__SSE2__)
-  const __m128 vx = _mm_set1_ps(viewpoint.x()), vy = _mm_set1_ps(viewpoint.y()), vz = _mm_set1_ps(viewpoint.z());
-  __m128 t[3][3];
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) t[r][c] = _mm_set1_ps(to_view(r, c));
+  const ViewLanes view(to_view);
   for (; i + 4 <= scan.size(); i += 4) {
-    const Vec3 *a = &scan[i], *b = &scan[i + 1], *c = &scan[i + 2], *d = &scan[i + 3];
-    const __m128 dx = _mm_sub_ps(_mm_setr_ps(a->x(), b->x(), c->x(), d->x()), vx);
-    const __m128 dy = _mm_sub_ps(_mm_setr_ps(a->y(), b->y(), c->y(), d->y()), vy);
-    const __m128 dz = _mm_sub_ps(_mm_setr_ps(a->z(), b->z(), c->z(), d->z()), vz);
-    __m128 q[3];
-    for (int r = 0; r < 3; ++r)
-      q[r] = _mm_add_ps(_mm_mul_ps(t[r][0], dx), _mm_add_ps(_mm_mul_ps(t[r][1], dy), _mm_mul_ps(t[r][2], dz)));
+    const Vec3 *a = &scan[i], *b = &scan[i + 1], *c = &scan[i + 2], *e = &scan[i + 3];
+    __m128 d[3], q[3];
+    for (int k = 0; k < 3; ++k) d[k] = _mm_sub_ps(_mm_setr_ps((*a)[k], (*b)[k], (*c)[k], (*e)[k]), _mm_set1_ps(viewpoint[k]));
+    view.rotate(d, q);
     const __m128 front = _mm_cmpnle_ps(q[2], _mm_setzero_ps());  // !(z <= 0), as the scalar test
     alignas(16) float u[4], v[4], range[4];
     _mm_store_ps(u, _mm_div_ps(q[0], q[2]));
     _mm_store_ps(v, _mm_div_ps(q[1], q[2]));
-    _mm_store_ps(range, _mm_sqrt_ps(_mm_add_ps(_mm_mul_ps(q[0], q[0]), _mm_add_ps(_mm_mul_ps(q[1], q[1]), _mm_mul_ps(q[2], q[2])))));
+    _mm_store_ps(range, ViewLanes::norm(q));
     for (unsigned lanes = unsigned(_mm_movemask_ps(front)); lanes; lanes &= lanes - 1) {
       const int l = std::countr_zero(lanes);
       out.u.push_back(u[l]);
@@ -428,12 +442,10 @@ Evidence SceneEvidence::evaluate(const Pose& pose, const PreparedModel& model, f
   struct Facing { Vec3 p; float range, u, v; bool grazing; };
   std::vector<Facing> facing;
 #if defined(__SSE2__)
-  // Four points at a time (poseFour), each lane summed as the scalar code below sums: to_view
-  // (p - viewpoint) and the dot as a + (b + c), the norm as x^2 + (y^2 + z^2).
+  // Four points at a time (poseFour, ViewLanes), each lane summed as the scalar code below sums
+  // (the dot as a + (b + c)).
   const detail::OrientedLanes& lanes = model.lanes();
-  __m128 t[3][3];
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) t[r][c] = _mm_set1_ps(to_view_(r, c));
+  const ViewLanes view(to_view_);
   const __m128 cos_grazing = _mm_set1_ps(cos_grazing_);
   for (std::size_t s = 0; s < lanes.size; s += 4) {
     alignas(16) float pf[12], nf[12];
@@ -448,11 +460,10 @@ Evidence SceneEvidence::evaluate(const Pose& pose, const PreparedModel& model, f
       n[k] = _mm_load_ps(nf + 4 * k);
     }
     __m128 q[3];
-    for (int r = 0; r < 3; ++r)
-      q[r] = _mm_add_ps(_mm_mul_ps(t[r][0], d[0]), _mm_add_ps(_mm_mul_ps(t[r][1], d[1]), _mm_mul_ps(t[r][2], d[2])));
+    view.rotate(d, q);
     keep &= static_cast<unsigned>(_mm_movemask_ps(_mm_cmpnle_ps(q[2], _mm_setzero_ps())));  // !(q.z <= 0)
     if (keep == 0) continue;
-    const __m128 range = _mm_sqrt_ps(_mm_add_ps(_mm_mul_ps(q[0], q[0]), _mm_add_ps(_mm_mul_ps(q[1], q[1]), _mm_mul_ps(q[2], q[2]))));
+    const __m128 range = ViewLanes::norm(q);
     const __m128 dot = _mm_add_ps(_mm_mul_ps(n[0], w[0]), _mm_add_ps(_mm_mul_ps(n[1], w[1]), _mm_mul_ps(n[2], w[2])));
     const unsigned grazing = static_cast<unsigned>(_mm_movemask_ps(_mm_cmplt_ps(dot, _mm_mul_ps(cos_grazing, range))));
     alignas(16) float ranges[4], u[4], v[4];
