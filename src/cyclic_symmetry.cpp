@@ -110,29 +110,67 @@ void screenRow(const float* __restrict c, const std::uint32_t* __restrict scene,
   }
 }
 
+/// A row's partners that passed the screen, packed in order: their index, model point q (in the
+/// axis's frame) and band, each array padded to a multiple of 8 with bands no turn is in.
+struct Kept {
+  std::vector<int> j;
+  std::vector<float> bx, by, bz, lo, hi;
+  int count = 0;
+  explicit Kept(std::size_t n) : j(n), bx(n + 8), by(n + 8), bz(n + 8), lo(n + 8), hi(n + 8) {}
+};
+
+/// The partners j in [begin, end) whose band screenRow left open, into `kept`: of IPD obj 8's
+/// pairs 29% pass, and only those go on to the turns.
+void keepScreened(const float* __restrict c, int n, int begin, int end, const float* __restrict t_lo,
+                  const float* __restrict t_hi, Kept& kept) {
+  int m = 0;
+  for (int j = begin; j < end; ++j) {  // no branch: each j written, kept when its band is open
+    kept.j[m] = j;
+    m += t_hi[j] > -1e29f;  // a screened-out band lies at about -1e30, an open one near the model's size squared
+  }
+  for (int p = 0; p < m; ++p) {
+    const int j = kept.j[p];
+    kept.bx[p] = c[kQx * n + j];
+    kept.by[p] = c[kQy * n + j];
+    kept.bz[p] = c[kQz * n + j];
+    kept.lo[p] = t_lo[j];
+    kept.hi[p] = t_hi[j];
+  }
+  // Padding, so that turnsInBand runs whole SIMD steps (a row keeps 18 partners on average on
+  // IPD obj 8: remainder loops were half its time).
+  for (int p = m; p < ((m + 7) & ~7); ++p) {
+    kept.bx[p] = kept.by[p] = kept.bz[p] = 0.0f;
+    kept.lo[p] = 1.0f;
+    kept.hi[p] = -1.0f;
+  }
+  kept.count = m;
+}
+
 /// The turns k in [k0, k1), k1 - k0 <= 32, at which row i's model pair has the scene pair's
-/// distance: bit k - k0 of turns[j] set when a . R_k b = ck[k] (a.b across the axis) - sk[k]
-/// (a x b)_z + a_z b_z lies in [t_lo[j], t_hi[j]], for the partners j in [begin, end). One turn
-/// at a time over all the partners, on SIMD lanes (AVX2 or the baseline; no FMA).
+/// distance: bit k - k0 of turns[p] set when a . R_k b = ck[k] (a.b across the axis) - sk[k]
+/// (a x b)_z + a_z b_z lies in [lo[p], hi[p]], for the m kept partners p (b their q, m padded
+/// to a multiple of 8). One turn at a time over all of them, on SIMD lanes (AVX2 or the
+/// baseline; no FMA).
 __attribute__((target_clones("avx2", "default")))
-void turnsInBand(const float* __restrict c, int n, const float* a, const float* __restrict t_lo,
-                 const float* __restrict t_hi, const float* ck, const float* sk,
-                 int k0, int k1, int begin, int end, float* __restrict dot, float* __restrict cross, float* __restrict z,
+void turnsInBand(const float* __restrict bx, const float* __restrict by, const float* __restrict bz,
+                 const float* __restrict lo, const float* __restrict hi, int m, const float* a, const float* ck,
+                 const float* sk, int k0, int k1, float* __restrict dot, float* __restrict cross, float* __restrict z,
                  std::uint32_t* __restrict turns) {
   const float ax = a[0], ay = a[1], az = a[2];
-  for (int j = begin; j < end; ++j) {
-    const float bx = c[kQx * n + j], by = c[kQy * n + j];
-    dot[j] = ax * bx + ay * by;
-    cross[j] = ax * by - ay * bx;
-    z[j] = az * c[kQz * n + j];
-    turns[j] = 0;
-  }
+  for (int p0 = 0; p0 < m; p0 += 8)
+    for (int p = p0; p < p0 + 8; ++p) {  // eight lanes at a step, no remainder
+      dot[p] = ax * bx[p] + ay * by[p];
+      cross[p] = ax * by[p] - ay * bx[p];
+      z[p] = az * bz[p];
+      turns[p] = 0;
+    }
   for (int k = k0; k < k1; ++k) {
     const float ckk = ck[k], skk = sk[k];
-    for (int j = begin; j < end; ++j) {
-      const float t = ckk * dot[j] - skk * cross[j] + z[j];
-      turns[j] |= static_cast<std::uint32_t>((t >= t_lo[j]) & (t <= t_hi[j])) << (k - k0);
-    }
+    for (int p0 = 0; p0 < m; p0 += 8)
+      for (int p = p0; p < p0 + 8; ++p) {
+        const float t = ckk * dot[p] - skk * cross[p] + z[p];
+        turns[p] |= static_cast<std::uint32_t>((t >= lo[p]) & (t <= hi[p])) << (k - k0);
+      }
   }
 }
 
@@ -235,10 +273,11 @@ Graph cyclicConsistencyGraph(std::span<const Correspondence> cps, const Points& 
   // screened, then the turns of the right distance found, both on SIMD lanes; the three angles
   // are tested only at those turns (1.8 a pair on average of IPD obj 8's 17, where any).
   tbb::parallel_for(tbb::blocked_range<int>(0, n, 16), [&](const tbb::blocked_range<int>& rows) {
-    std::vector<float> dot(cps.size()), cross(cps.size()), z(cps.size());
-    std::vector<std::uint32_t> turns(cps.size());
+    std::vector<float> dot(cps.size() + 8), cross(cps.size() + 8), z(cps.size() + 8);
+    std::vector<std::uint32_t> turns(cps.size() + 8);
     std::vector<float> t_lo(cps.size()), t_hi(cps.size()), nn_scene(cps.size()), ni_d(cps.size()), nj_d(cps.size()),
         slack(cps.size());
+    Kept kept(cps.size());
     for (int i = rows.begin(); i < rows.end(); ++i) {
       RowTerms terms{};
       for (int f = 0; f < kColumns; ++f) terms.col[f] = c.col[static_cast<std::size_t>(f) * n + i];
@@ -247,16 +286,19 @@ Graph cyclicConsistencyGraph(std::span<const Correspondence> cps, const Points& 
       terms.tol = tol;
       screenRow(c.col.data(), c.scene.data(), n, terms, i + 1, n, t_lo.data(), t_hi.data(), nn_scene.data(), ni_d.data(),
                 nj_d.data(), slack.data());
+      keepScreened(c.col.data(), n, i + 1, n, t_lo.data(), t_hi.data(), kept);
       std::uint64_t* row = g.mutableRow(i);
       const Vec3& a = q[i];
       for (int k0 = 0; k0 < sym.order; k0 += 32) {  // 32 turns at a time: one pass for n <= 32
-        turnsInBand(c.col.data(), n, q[i].data(), t_lo.data(), t_hi.data(), ck.data(), sk.data(), k0,
-                    std::min(sym.order, k0 + 32), i + 1, n, dot.data(), cross.data(), z.data(), turns.data());
-        for (int j = i + 1; j < n; ++j) {
-          if (turns[j] == 0 || (row[j / 64] >> (j % 64) & 1)) continue;  // most pairs; those linked at turns before
+        turnsInBand(kept.bx.data(), kept.by.data(), kept.bz.data(), kept.lo.data(), kept.hi.data(), (kept.count + 7) & ~7,
+                    q[i].data(), ck.data(), sk.data(), k0, std::min(sym.order, k0 + 32), dot.data(), cross.data(), z.data(),
+                    turns.data());
+        for (int p = 0; p < kept.count; ++p) {
+          const int j = kept.j[p];
+          if (turns[p] == 0 || (row[j / 64] >> (j % 64) & 1)) continue;  // most pairs; those linked at turns before
           // At a turn of the right distance, the three angles of the pair (4.1) as in the scene, within tol.
           const Turned nn = turned(u[i], u[j]), na = turned(u[i], q[j]), bn = turned(a, u[j]);
-          for (std::uint32_t bits = turns[j]; bits; bits &= bits - 1) {
+          for (std::uint32_t bits = turns[p]; bits; bits &= bits - 1) {
             const int k = k0 + std::countr_zero(bits);
             if (std::abs(nn.at(ck[k], sk[k]) - nn_scene[j]) > tol) continue;
             if (std::abs(na.at(ck[k], sk[k]) - ni_d[j]) > slack[j]) continue;  // n_i . (R_k b - a)
