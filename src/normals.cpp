@@ -4,11 +4,94 @@
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
+#include <cmath>
 #include <fmt/format.h>
 #include <numeric>
 #include <tbb/parallel_for.h>
 
 namespace binpose {
+
+namespace {
+
+/// Eq. 36-38 by Eigen's iterative solver: the eigenvector of W's least eigenvalue, as a float
+/// unit vector; false when W is degenerate (its two least eigenvalues both about zero).
+bool iterativeNormal(const Eigen::Matrix3d& W, Vec3& normal) {
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(W);
+  const Eigen::Vector3d lambda = solver.eigenvalues();
+  if (solver.info() != Eigen::Success || !(lambda[1] > 1e-12 * std::max(lambda[2], 1e-30))) return false;
+  normal = solver.eigenvectors().col(0).cast<float>();
+  return normalizeSafe(normal);
+}
+
+/// The same eigenvector in closed form, when that is sure to give the iterative solver's float
+/// normal; false when it is not (then ask the solver). The eigenvalues are the roots of W's
+/// characteristic cubic (trigonometric form, on W shifted by its mean eigenvalue and scaled to
+/// [-1, 1], as Eigen's computeDirect), the eigenvector the largest cross product of two rows
+/// of W - lambda_0 I. The solver's eigenvector lies within a few eps ||W|| / gap of the exact
+/// one (gap = lambda_1 - lambda_0; it is backward stable); the cubic's root within a few
+/// eps ||W||^2 / gap, and so the cross product within a few eps (||W|| / gap)^2. When every
+/// coordinate stays in one float's rounding interval across a margin far wider than both,
+/// 1e-12 (||W|| / gap)^2 (over 4000 times), both round to the same floats, up to the sign,
+/// which normalizeSafe keeps and the caller's turn towards the viewpoint settles. A gap under
+/// 1e-3 ||W|| is left to the solver, as is a coordinate within the margin of a rounding
+/// boundary: on the bench's bins about a third of the normals, most of them on the
+/// bin's floor and walls, whose coordinates along the scan's axes are zero or nearly so.
+/// (computeDirect itself, used alone, changed normals in their last bits, and the votes
+/// followed: rounds 6, 11 and 27 of docs/speed_history.md.)
+bool closedFormNormal(const Eigen::Matrix3d& W, Eigen::Vector3d& v) {
+  const double shift = W.trace() / 3.0;
+  Eigen::Matrix3d B = W;
+  B.diagonal().array() -= shift;
+  const double scale = B.cwiseAbs().maxCoeff();
+  if (!(scale > 0) || !std::isfinite(scale)) return false;
+  B /= scale;
+  // The characteristic polynomial x^3 - c2 x^2 + c1 x - c0 (Eigen's computeRoots).
+  const double c0 = B(0, 0) * B(1, 1) * B(2, 2) + 2.0 * B(1, 0) * B(2, 0) * B(2, 1) - B(0, 0) * B(2, 1) * B(2, 1) -
+                    B(1, 1) * B(2, 0) * B(2, 0) - B(2, 2) * B(1, 0) * B(1, 0);
+  const double c1 = B(0, 0) * B(1, 1) - B(1, 0) * B(1, 0) + B(0, 0) * B(2, 2) - B(2, 0) * B(2, 0) + B(1, 1) * B(2, 2) -
+                    B(2, 1) * B(2, 1);
+  const double c2 = B.trace();
+  const double c2_3 = c2 / 3.0;
+  const double a_3 = std::max(0.0, (c2 * c2_3 - c1) / 3.0);
+  const double half_b = 0.5 * (c0 + c2_3 * (2.0 * c2_3 * c2_3 - c1));
+  const double q = std::max(0.0, a_3 * a_3 * a_3 - half_b * half_b);
+  const double rho = std::sqrt(a_3), theta = std::atan2(std::sqrt(q), half_b) / 3.0;
+  const double cos_t = std::cos(theta), sin_t = std::sin(theta), sqrt3 = std::sqrt(3.0);
+  const double root0 = c2_3 - rho * (cos_t + sqrt3 * sin_t);
+  const double root1 = c2_3 - rho * (cos_t - sqrt3 * sin_t);
+  const double root2 = c2_3 + 2.0 * rho * cos_t;
+  const double norm = std::max({std::abs(root0), std::abs(root2), 1e-300}) + std::abs(shift) / scale;  // ||W|| / scale
+  const double gap = root1 - root0;
+  if (!(gap >= 1e-3 * norm)) return false;
+  B.diagonal().array() -= root0;
+  const Eigen::Vector3d r0 = B.row(0), r1 = B.row(1), r2 = B.row(2);
+  const Eigen::Vector3d cross[3] = {r0.cross(r1), r0.cross(r2), r1.cross(r2)};
+  const double n[3] = {cross[0].squaredNorm(), cross[1].squaredNorm(), cross[2].squaredNorm()};
+  const int best = n[0] >= n[1] ? (n[0] >= n[2] ? 0 : 2) : (n[1] >= n[2] ? 1 : 2);
+  if (!(n[best] > 0) || !std::isfinite(n[best])) return false;
+  v = cross[best] / std::sqrt(n[best]);
+  const double ratio = norm / gap, margin = 1e-12 * ratio * ratio;
+  for (int i = 0; i < 3; ++i)
+    if (static_cast<float>(v[i] - margin) != static_cast<float>(v[i] + margin)) return false;  // zeros too
+  return true;
+}
+
+}  // namespace
+
+namespace detail {
+
+bool scatterNormal(const Eigen::Matrix3d& W, Vec3& normal, bool closed_form, bool* answered_closed) {
+  Eigen::Vector3d v;
+  const bool closed = closed_form && closedFormNormal(W, v);
+  if (answered_closed != nullptr) *answered_closed = closed;
+  if (closed) {
+    normal = v.cast<float>();
+    return normalizeSafe(normal);
+  }
+  return iterativeNormal(W, normal);
+}
+
+}  // namespace detail
 
 namespace {
 
@@ -43,14 +126,7 @@ bool planeNormal(std::size_t count, At at, Vec3& normal) {
   }
   Eigen::Matrix3d W;
   W << xx, yx, zx, yx, yy, zy, zx, zy, zz;
-  // Eigenvalues ascending (eq. 36-38). The closed-form solver (computeDirect) takes a third of
-  // the time and gives the same normals to within 3e-6 degrees, but twice (five rounds apart)
-  // that was enough to add a wrong pose (score 0.21) to the default preset's PCL milk result.
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(W);
-  const Eigen::Vector3d lambda = solver.eigenvalues();
-  if (solver.info() != Eigen::Success || !(lambda[1] > 1e-12 * std::max(lambda[2], 1e-30))) return false;
-  normal = solver.eigenvectors().col(0).cast<float>();
-  return normalizeSafe(normal);
+  return detail::scatterNormal(W, normal);
 }
 
 }  // namespace

@@ -8,6 +8,9 @@
 #include "test_util.hpp"
 
 #include <cmath>
+#include <cstring>
+#include <iostream>
+#include <random>
 
 using namespace binpose;
 using binpose::test::deg;
@@ -93,4 +96,69 @@ TEST(Normals, InwardWoundMeshStillGetsOutwardNormals) {
   params.num_points = 1000;
   const OrientedModel model = prepareModel(sphere, params);
   for (std::size_t i = 0; i < model.points.size(); ++i) EXPECT_GT(model.normals[i].dot(model.points[i]), 0.0f);
+}
+
+namespace {
+
+/// W = Q^T Q about the centroid of `points` (eq. 33-35), in double.
+Eigen::Matrix3d scatterOf(const Points& points) {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (const Vec3& p : points) c += p.cast<double>();
+  c /= static_cast<double>(points.size());
+  Eigen::Matrix3d W = Eigen::Matrix3d::Zero();
+  for (const Vec3& p : points) {
+    const Eigen::Vector3d d = p.cast<double>() - c;
+    W += d * d.transpose();
+  }
+  return W;
+}
+
+}  // namespace
+
+// The closed-form eigenvector answers only where it gives the iterative solver's very floats
+// (up to the sign): on neighbourhoods like a scan's, tilted or lying flat on an axis (exact
+// zeros), noisy or not, nearly collinear, in the depth image's steps.
+TEST(Normals, ClosedFormGivesTheSolversFloats) {
+  std::mt19937 rng(20261125);
+  std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+  std::normal_distribution<float> gauss(0.0f, 1.0f);
+  const float noises[] = {0.0f, 1e-6f, 1e-3f, 0.05f, 0.5f};
+  int cases = 0, closed = 0, refused = 0;
+  for (int c = 0; c < 60000; ++c) {
+    const int kind = c % 5;
+    Vec3 normal(unit(rng), unit(rng), unit(rng));
+    if (kind == 1) normal = Vec3::Unit(c / 5 % 3);                   // a floor or wall on an axis
+    if (kind == 2) normal = (Vec3::Unit(c / 5 % 3) + 1e-6f * normal).eval();  // nearly on one
+    if (!normalizeSafe(normal)) continue;
+    const Vec3 u = normal.unitOrthogonal(), v = normal.cross(u);
+    const Vec3 centre(200.0f * unit(rng), 200.0f * unit(rng), 600.0f + 200.0f * unit(rng));
+    const float noise = noises[(c / 5) % 5];
+    Points points;
+    for (int j = 0; j < 8; ++j) {
+      // 3: nearly a line, or a line, or one point repeated.
+      const float width = kind != 3 ? 2.0f : (c / 5) % 3 == 0 ? 1e-4f : 0.0f;
+      const float a = kind == 3 && (c / 5) % 3 == 2 ? 0.0f : 2.0f * unit(rng), b = width * unit(rng);
+      Vec3 p = centre + a * u + b * v + noise * gauss(rng) * normal;
+      if (kind == 1) p[c / 5 % 3] = centre[c / 5 % 3];  // exactly flat
+      if (kind == 4) p = (p * 8.0f).array().round().matrix() / 8.0f;  // quantized, as depth steps
+      points.push_back(p);
+    }
+    const Eigen::Matrix3d W = scatterOf(points);
+    Vec3 fast = Vec3::Zero(), slow = Vec3::Zero();
+    bool answered = false;
+    const bool ok_fast = detail::scatterNormal(W, fast, true, &answered);
+    const bool ok_slow = detail::scatterNormal(W, slow, false);
+    ++cases;
+    closed += answered;
+    refused += !ok_slow;
+    ASSERT_EQ(ok_fast, ok_slow) << "case " << c;
+    if (!ok_slow) continue;
+    const Vec3 flipped = -fast;
+    ASSERT_TRUE(std::memcmp(fast.data(), slow.data(), sizeof(Vec3)) == 0 ||
+                std::memcmp(flipped.data(), slow.data(), sizeof(Vec3)) == 0)
+        << "case " << c << " kind " << kind << ": " << fast.transpose() << " against " << slow.transpose();
+  }
+  std::cout << cases << " cases: " << closed << " answered in closed form, " << refused << " degenerate\n";
+  EXPECT_GT(closed, cases / 2);  // the closed form answers most of them
+  EXPECT_GT(refused, 0);         // and degenerate ones came up
 }

@@ -35,4 +35,13 @@ Points pixelNormals(const PixelNeighbours& pixels, const Points& cloud, std::spa
 void finishNormals(const PointGrid& grid, const Points& cloud, std::span<const std::uint32_t> chosen,
                    std::span<const std::uint32_t> deferred, int k, const Vec3& viewpoint, Points& normals);
 
+namespace detail {
+/// Eq. 36-38 on a scatter matrix W (symmetric): the unit eigenvector of its least eigenvalue in
+/// float; false when W is degenerate (its two least eigenvalues both about zero). With
+/// `closed_form`, found in closed form where that is proved to give the very floats of Eigen's
+/// iterative solver (up to the sign), by the solver elsewhere; without, by the solver alone.
+/// `answered_closed`, when given, tells which answered.
+bool scatterNormal(const Eigen::Matrix3d& W, Vec3& normal, bool closed_form = true, bool* answered_closed = nullptr);
+}  // namespace detail
+
 }  // namespace binpose
