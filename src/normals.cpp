@@ -24,46 +24,28 @@ bool iterativeNormal(const Eigen::Matrix3d& W, Vec3& normal) {
 }
 
 /// The same eigenvector in closed form, when that is sure to give the iterative solver's float
-/// normal; false when it is not (then ask the solver). The eigenvalues are the roots of W's
-/// characteristic cubic (trigonometric form, on W shifted by its mean eigenvalue and scaled to
-/// [-1, 1], as Eigen's computeDirect), the eigenvector the largest cross product of two rows
-/// of W - lambda_0 I. The solver's eigenvector lies within a few eps ||W|| / gap of the exact
-/// one (gap = lambda_1 - lambda_0; it is backward stable); the cubic's root within a few
-/// eps ||W||^2 / gap, and so the cross product within a few eps (||W|| / gap)^2. When every
-/// coordinate stays in one float's rounding interval across a margin far wider than both,
-/// 1e-12 (||W|| / gap)^2 (over 4000 times), both round to the same floats, up to the sign,
-/// which normalizeSafe keeps and the caller's turn towards the viewpoint settles. A gap under
-/// 1e-3 ||W|| is left to the solver, as is a coordinate within the margin of a rounding
-/// boundary: on the bench's bins about a third of the normals, most of them on the
-/// bin's floor and walls, whose coordinates along the scan's axes are zero or nearly so.
-/// (computeDirect itself, used alone, changed normals in their last bits, and the votes
-/// followed: rounds 6, 11 and 27 of docs/speed_history.md.)
+/// normal; false when it is not (then ask the solver). The eigenvalues are Eigen's closed form
+/// (computeDirect: the roots of W's characteristic cubic), the eigenvector the largest cross
+/// product of two rows of W - lambda_0 I. The solver's eigenvector lies within a few
+/// eps ||W|| / gap of the exact one (gap = lambda_1 - lambda_0; it is backward stable); the
+/// cubic's root within a few eps ||W||^2 / gap, and so the cross product within a few
+/// eps (||W|| / gap)^2. When every coordinate stays in one float's rounding interval across a
+/// margin far wider than both, 1e-12 (||W|| / gap)^2 (over 4000 times), both round to the same
+/// floats, up to the sign, which normalizeSafe keeps and the caller's turn towards the
+/// viewpoint settles. A gap under 1e-3 ||W|| is left to the solver, as is a coordinate within
+/// the margin of a rounding boundary: on the bench's bins about a third of the normals, most
+/// of them on the bin's floor and walls, whose coordinates along the scan's axes are zero or
+/// nearly so. (computeDirect's own eigenvectors, used alone, changed normals in their last
+/// bits, and the votes followed: rounds 6, 11 and 27 of docs/speed_history.md.)
 bool closedFormNormal(const Eigen::Matrix3d& W, Eigen::Vector3d& v) {
-  const double shift = W.trace() / 3.0;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> roots;
+  roots.computeDirect(W, Eigen::EigenvaluesOnly);
+  const Eigen::Vector3d lambda = roots.eigenvalues();  // ascending
+  const double norm = std::max(std::abs(lambda[0]), std::abs(lambda[2]));  // ||W||
+  const double gap = lambda[1] - lambda[0];
+  if (!(norm > 0) || !std::isfinite(norm) || !(gap >= 1e-3 * norm)) return false;
   Eigen::Matrix3d B = W;
-  B.diagonal().array() -= shift;
-  const double scale = B.cwiseAbs().maxCoeff();
-  if (!(scale > 0) || !std::isfinite(scale)) return false;
-  B /= scale;
-  // The characteristic polynomial x^3 - c2 x^2 + c1 x - c0 (Eigen's computeRoots).
-  const double c0 = B(0, 0) * B(1, 1) * B(2, 2) + 2.0 * B(1, 0) * B(2, 0) * B(2, 1) - B(0, 0) * B(2, 1) * B(2, 1) -
-                    B(1, 1) * B(2, 0) * B(2, 0) - B(2, 2) * B(1, 0) * B(1, 0);
-  const double c1 = B(0, 0) * B(1, 1) - B(1, 0) * B(1, 0) + B(0, 0) * B(2, 2) - B(2, 0) * B(2, 0) + B(1, 1) * B(2, 2) -
-                    B(2, 1) * B(2, 1);
-  const double c2 = B.trace();
-  const double c2_3 = c2 / 3.0;
-  const double a_3 = std::max(0.0, (c2 * c2_3 - c1) / 3.0);
-  const double half_b = 0.5 * (c0 + c2_3 * (2.0 * c2_3 * c2_3 - c1));
-  const double q = std::max(0.0, a_3 * a_3 * a_3 - half_b * half_b);
-  const double rho = std::sqrt(a_3), theta = std::atan2(std::sqrt(q), half_b) / 3.0;
-  const double cos_t = std::cos(theta), sin_t = std::sin(theta), sqrt3 = std::sqrt(3.0);
-  const double root0 = c2_3 - rho * (cos_t + sqrt3 * sin_t);
-  const double root1 = c2_3 - rho * (cos_t - sqrt3 * sin_t);
-  const double root2 = c2_3 + 2.0 * rho * cos_t;
-  const double norm = std::max({std::abs(root0), std::abs(root2), 1e-300}) + std::abs(shift) / scale;  // ||W|| / scale
-  const double gap = root1 - root0;
-  if (!(gap >= 1e-3 * norm)) return false;
-  B.diagonal().array() -= root0;
+  B.diagonal().array() -= lambda[0];
   const Eigen::Vector3d r0 = B.row(0), r1 = B.row(1), r2 = B.row(2);
   const Eigen::Vector3d cross[3] = {r0.cross(r1), r0.cross(r2), r1.cross(r2)};
   const double n[3] = {cross[0].squaredNorm(), cross[1].squaredNorm(), cross[2].squaredNorm()};
