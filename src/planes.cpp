@@ -19,89 +19,113 @@ bool onPlane(const Vec3& p, const Vec3& n, const Plane& plane, float tolerance, 
   return plane.distance(p) <= tolerance && std::abs(plane.normal.dot(n)) >= min_cos;
 }
 
-/// Connected patches of `members` (links shorter than `link`), as lists of indices into points:
-/// the components of a union-find over the pairs closer than `link`, each pair looked at once,
-/// in cells a little wider than `link` (a linked pair lies in the same or neighbouring cells).
-/// The distances are PointGrid's (x^2 + (y^2 + z^2) of the difference, strictly under link^2).
-std::vector<std::vector<std::uint32_t>> patches(const Points& points, const std::vector<std::uint32_t>& members, float link) {
+/// Connected patches of `members` (links shorter than `link`) by a flood fill through a grid of
+/// them: any box, any link.
+std::vector<std::vector<std::uint32_t>> floodPatches(const Points& points, const std::vector<std::uint32_t>& members, float link) {
+  const std::size_t n = members.size();
+  std::vector<std::vector<std::uint32_t>> out;
+  Points sub;
+  for (const auto i : members) sub.push_back(points[i]);
+  const PointGrid grid(sub, link);
+  std::vector<char> seen(n, 0);
+  std::vector<std::uint32_t> stack, found;
+  for (std::uint32_t s = 0; s < n; ++s) {
+    if (seen[s]) continue;
+    std::vector<std::uint32_t> patch;
+    seen[s] = 1;
+    stack.assign(1, s);
+    while (!stack.empty()) {
+      const std::uint32_t a = stack.back();
+      stack.pop_back();
+      patch.push_back(members[a]);
+      grid.within(sub[a], link, found);
+      for (const auto b : found)
+        if (!seen[b]) {
+          seen[b] = 1;
+          stack.push_back(b);
+        }
+    }
+    out.push_back(std::move(patch));
+  }
+  return out;
+}
+
+}  // namespace
+
+namespace detail {
+
+std::vector<std::vector<std::uint32_t>> linkedPatches(const Points& points, const std::vector<std::uint32_t>& members, float link,
+                                                      const Vec3& normal) {
   const std::size_t n = members.size();
   std::vector<std::vector<std::uint32_t>> out;
   if (n == 0) return out;
-  Vec3 lo = points[members[0]], hi = lo;
-  for (const auto i : members) {
-    lo = lo.cwiseMin(points[i]);
-    hi = hi.cwiseMax(points[i]);
-  }
-  const float side = std::max(1.001f * link, 1e-6f * (hi - lo).maxCoeff());
-  const Eigen::Array3d cells = ((hi - lo) / side).cast<double>().array().floor() + 1.0;
-  if (cells.prod() > std::max(8.0 * double(n), double(1 << 20))) {  // a sparse box: the grid's flood fill
-    Points sub;
-    for (const auto i : members) sub.push_back(points[i]);
-    const PointGrid grid(sub, link);
-    std::vector<char> seen(n, 0);
-    std::vector<std::uint32_t> stack, found;
-    for (std::uint32_t s = 0; s < n; ++s) {
-      if (seen[s]) continue;
-      std::vector<std::uint32_t> patch;
-      seen[s] = 1;
-      stack.assign(1, s);
-      while (!stack.empty()) {
-        const std::uint32_t a = stack.back();
-        stack.pop_back();
-        patch.push_back(members[a]);
-        grid.within(sub[a], link, found);
-        for (const auto b : found)
-          if (!seen[b]) {
-            seen[b] = 1;
-            stack.push_back(b);
-          }
-      }
-      out.push_back(std::move(patch));
-    }
-    return out;
-  }
-  const auto nx = static_cast<std::size_t>(cells.x()), ny = static_cast<std::size_t>(cells.y()),
-             nz = static_cast<std::size_t>(cells.z());
-  std::vector<std::uint32_t> cell_of(n), offsets, order;
-  auto cellOf = [&](const Vec3& p, std::size_t axis) {
-    return std::min(static_cast<std::size_t>(std::max(0.0f, std::floor((p[axis] - lo[axis]) / side))),
-                    (axis == 0 ? nx : axis == 1 ? ny : nz) - 1);
-  };
+  // The points in the plane's coordinates (u, v along it, w across), bucketed by (u, v) in
+  // square cells of a side s with 2 s^2 + (w's range)^2 under link^2, a fiftieth of margin over
+  // the float roundings: any two points of a cell are linked, so a cell joins whole, and two
+  // cells join by their first linked pair, looked for only while they are apart. A pair closer
+  // than link in space is closer along the plane, so its cells are at most `reach` apart.
+  const Vec3 e1 = normal.unitOrthogonal(), e2 = normal.cross(e1);
+  std::vector<float> u(n), v(n);
+  float u_lo = INFINITY, u_hi = -INFINITY, v_lo = INFINITY, v_hi = -INFINITY, w_lo = INFINITY, w_hi = -INFINITY;
   for (std::size_t k = 0; k < n; ++k) {
     const Vec3& p = points[members[k]];
-    cell_of[k] = static_cast<std::uint32_t>((cellOf(p, 2) * ny + cellOf(p, 1)) * nx + cellOf(p, 0));
+    u[k] = e1.dot(p);
+    v[k] = e2.dot(p);
+    const float w = normal.dot(p);
+    u_lo = std::min(u_lo, u[k]), u_hi = std::max(u_hi, u[k]);
+    v_lo = std::min(v_lo, v[k]), v_hi = std::max(v_hi, v[k]);
+    w_lo = std::min(w_lo, w), w_hi = std::max(w_hi, w);
   }
-  sortByCell(cell_of, nx * ny * nz, offsets, order);
+  const float thickness = w_hi - w_lo;
+  const float side = std::sqrt(std::max(0.0f, (0.98f * link * link - thickness * thickness) / 2.0f));
+  const double nu = std::floor(double(u_hi - u_lo) / side) + 1, nv = std::floor(double(v_hi - v_lo) / side) + 1;
+  if (!(side >= 0.125f * link) || !(side >= 1e-6f * std::max(u_hi - u_lo, v_hi - v_lo)) ||
+      !(nu * nv <= std::max(8.0 * double(n), double(1 << 20))))
+    return floodPatches(points, members, link);  // a thick slab, or a box too wide for such cells
+  const auto cols = static_cast<std::size_t>(nu), rows = static_cast<std::size_t>(nv);
+  const auto reach = static_cast<std::ptrdiff_t>(std::ceil(1.01f * link / side));
+  std::vector<std::uint32_t> cell_of(n), offsets, order;
+  for (std::size_t k = 0; k < n; ++k) {
+    const auto cu = std::min(static_cast<std::size_t>(std::max(0.0f, std::floor((u[k] - u_lo) / side))), cols - 1);
+    const auto cv = std::min(static_cast<std::size_t>(std::max(0.0f, std::floor((v[k] - v_lo) / side))), rows - 1);
+    cell_of[k] = static_cast<std::uint32_t>(cv * cols + cu);
+  }
+  sortByCell(cell_of, cols * rows, offsets, order);
   std::vector<std::uint32_t> parent(n);
   std::iota(parent.begin(), parent.end(), 0u);
   auto root = [&](std::uint32_t a) {
     while (parent[a] != a) a = parent[a] = parent[parent[a]];
     return a;
   };
+  auto join = [&](std::uint32_t a, std::uint32_t b) {
+    const std::uint32_t ra = root(a), rb = root(b);
+    if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
+  };
   const float limit = link * link;
-  auto linkCells = [&](std::size_t a, std::size_t b) {  // every pair of a point of cell a and one of cell b
+  auto linkCells = [&](std::size_t a, std::size_t b) {  // a's and b's points joined by their first linked pair
+    if (root(order[offsets[a]]) == root(order[offsets[b]])) return;
     for (std::uint32_t s = offsets[a]; s < offsets[a + 1]; ++s)
-      for (std::uint32_t t = a == b ? s + 1 : offsets[b]; t < offsets[b + 1]; ++t) {
+      for (std::uint32_t t = offsets[b]; t < offsets[b + 1]; ++t) {
         const Vec3 d = points[members[order[t]]] - points[members[order[s]]];
         if (d.x() * d.x() + (d.y() * d.y() + d.z() * d.z()) >= limit) continue;
-        const std::uint32_t ra = root(order[s]), rb = root(order[t]);
-        if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
+        join(order[s], order[t]);
+        return;
       }
   };
-  for (std::size_t z = 0; z < nz; ++z)
-    for (std::size_t y = 0; y < ny; ++y)
-      for (std::size_t x = 0; x < nx; ++x) {
-        const std::size_t a = (z * ny + y) * nx + x;
-        if (offsets[a] == offsets[a + 1]) continue;
-        // The cell itself and its 13 neighbours that come after it in (z, y, x) order.
-        for (int dz = 0; dz <= 1; ++dz)
-          for (int dy = dz == 0 ? 0 : -1; dy <= 1; ++dy)
-            for (int dx = dz == 0 && dy == 0 ? 0 : -1; dx <= 1; ++dx) {
-              const std::ptrdiff_t bx = std::ptrdiff_t(x) + dx, by = std::ptrdiff_t(y) + dy, bz = std::ptrdiff_t(z) + dz;
-              if (bx < 0 || by < 0 || bx >= std::ptrdiff_t(nx) || by >= std::ptrdiff_t(ny) || bz >= std::ptrdiff_t(nz)) continue;
-              linkCells(a, (std::size_t(bz) * ny + std::size_t(by)) * nx + std::size_t(bx));
-            }
+  for (std::size_t first = 0; first < n;) {  // the occupied cells, in order
+    const std::size_t a = cell_of[order[first]];
+    first = offsets[a + 1];
+    for (std::uint32_t s = offsets[a] + 1; s < offsets[a + 1]; ++s) join(order[offsets[a]], order[s]);
+    const auto x = static_cast<std::ptrdiff_t>(a % cols), y = static_cast<std::ptrdiff_t>(a / cols);
+    // The cells within reach that come after a in (v, u) order.
+    for (std::ptrdiff_t dy = 0; dy <= reach; ++dy)
+      for (std::ptrdiff_t dx = dy == 0 ? 1 : -reach; dx <= reach; ++dx) {
+        const std::ptrdiff_t bx = x + dx, by = y + dy;
+        if (bx < 0 || bx >= std::ptrdiff_t(cols) || by >= std::ptrdiff_t(rows)) continue;
+        const std::size_t b = std::size_t(by) * cols + std::size_t(bx);
+        if (offsets[b] != offsets[b + 1]) linkCells(a, b);
       }
+  }
   std::vector<std::uint32_t> patch_of(n, ~std::uint32_t{0});
   for (std::uint32_t k = 0; k < n; ++k) {
     std::uint32_t& p = patch_of[root(k)];
@@ -113,6 +137,10 @@ std::vector<std::vector<std::uint32_t>> patches(const Points& points, const std:
   }
   return out;
 }
+
+}  // namespace detail
+
+namespace {
 
 /// How many probe points lie on `plane`: onPlane with the same sums in the same order, on SIMD
 /// lanes (300 hypotheses a plane made this loop half of the plane search's time).
@@ -208,7 +236,7 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
     if (static_cast<float>(behind) > params.max_behind * static_cast<float>(points.size())) continue;  // not background
     Background* b = &background.emplace_back(Background{best, inliers, false});
     flood.run([&, b] {
-      for (const auto& patch : patches(points, b->inliers, params.link))
+      for (const auto& patch : detail::linkedPatches(points, b->inliers, params.link, b->plane.normal))
         if (patch.size() >= min_count) {
           for (const auto i : patch) plane[i] = 1;
           b->taken = true;

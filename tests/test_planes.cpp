@@ -6,6 +6,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
 using namespace binpose;
 
 namespace {
@@ -115,4 +119,94 @@ TEST(Planes, PatchesJoinAcrossGapsShorterThanTheLink) {
     else
       EXPECT_EQ(removed, 0) << "gap " << gap;
   }
+}
+
+// The patches are the connected components of "strictly closer than link" by definition (every
+// pair, a union-find), on clouds that reach both of linkedPatches's paths: lattices on a plane,
+// flat or shaken off it by up to 0.3 links, given its normal or one at random (cells along the
+// plane), and clusters spread far wider than the link or given a normal across a thick slab (the
+// grid's flood fill). The lattices' spacing is the link or a float's step under it, or less, so
+// pairs at the threshold count; a quarter of the clouds are points at random on the plane, sparser.
+TEST(Planes, PatchesAreTheComponentsOfTheLinks) {
+  Rng rng(7);
+  const auto randomUnit = [&] { return Vec3(test::gaussian(rng), test::gaussian(rng), test::gaussian(rng)).normalized(); };
+  int split = 0, large = 0;  // trials of several patches, and of a patch over 50 points
+  for (int trial = 0; trial < 60; ++trial) {
+    const float link = 2.0f + 8.0f * static_cast<float>(rng.uniform());
+    const bool stretched = trial % 3 == 2;
+    Points points;
+    std::vector<std::uint32_t> members;
+    const int clusters = 1 + trial % 5;
+    Vec3 normal = randomUnit();
+    const Vec3 u = trial % 2 ? Vec3::UnitX() : normal.unitOrthogonal(), v = trial % 2 ? Vec3::UnitY() : normal.cross(u);
+    for (int c = 0; c < clusters; ++c) {
+      const auto spread = [&] { return static_cast<float>(120.0 * rng.uniform() - 60.0); };
+      const Vec3 centre = Vec3(0, 0, 500) + (stretched ? Vec3(float(c) * 1e6f, 0, 0) : spread() * u + spread() * v);
+      const float step = trial % 4 == 0 ? link : trial % 4 == 1 ? std::nextafter(link, 0.0f) : 0.7f * link;
+      for (int i = 0; i < 12; ++i)
+        for (int j = 0; j < 12; ++j) {
+          if (rng.uniform() < 0.15) continue;  // holes that may cut a lattice apart
+          Vec3 p = centre + (float(i) * step) * u + (float(j) * step) * v;
+          if (trial % 4 == 3) p += 0.3f * link * randomUnit();
+          if (trial % 8 == 2 || trial % 8 == 6)  // at random over the lattice's square instead
+            p = centre + float(20.0 * step * rng.uniform()) * u + float(20.0 * step * rng.uniform()) * v;
+          points.push_back(p);
+        }
+    }
+    for (std::uint32_t i = 0; i < points.size(); ++i)
+      if (rng.uniform() < 0.9) members.push_back(i);
+    // By definition: every pair, in float, strictly under link^2.
+    std::vector<std::uint32_t> parent(members.size());
+    std::iota(parent.begin(), parent.end(), 0u);
+    auto root = [&](std::uint32_t a) {
+      while (parent[a] != a) a = parent[a];
+      return a;
+    };
+    for (std::uint32_t a = 0; a < members.size(); ++a)
+      for (std::uint32_t b = a + 1; b < members.size(); ++b) {
+        const Vec3 d = points[members[b]] - points[members[a]];
+        if (d.x() * d.x() + (d.y() * d.y() + d.z() * d.z()) < link * link) parent[std::max(root(a), root(b))] = std::min(root(a), root(b));
+      }
+    std::vector<std::vector<std::uint32_t>> expected;
+    std::vector<int> patch_of(members.size(), -1);
+    for (std::uint32_t k = 0; k < members.size(); ++k) {
+      int& p = patch_of[root(k)];
+      if (p < 0) {
+        p = static_cast<int>(expected.size());
+        expected.emplace_back();
+      }
+      expected[static_cast<std::size_t>(p)].push_back(members[k]);
+    }
+    if (trial % 2) normal = Vec3::UnitZ();
+    if (trial % 5 == 4) normal = randomUnit();  // not the plane's
+    auto found = detail::linkedPatches(points, members, link, normal);
+    for (auto& patch : found) std::sort(patch.begin(), patch.end());
+    EXPECT_EQ(found, expected) << "trial " << trial << ", link " << link;
+    split += expected.size() > 1;
+    large += std::any_of(expected.begin(), expected.end(), [](const auto& p) { return p.size() > 50; });
+  }
+  EXPECT_GT(split, 20);
+  EXPECT_GT(large, 20);
+}
+
+// Two points near the link's distance apart, along a plane and a little across it: one patch
+// exactly when they are closer than the link (in float, the definition's sum), wherever the
+// cells along the plane put them.
+TEST(Planes, APairIsOnePatchExactlyWhenLinked) {
+  Rng rng(11);
+  const auto randomUnit = [&] { return Vec3(test::gaussian(rng), test::gaussian(rng), test::gaussian(rng)).normalized(); };
+  int linked = 0, apart = 0;
+  for (int trial = 0; trial < 20000; ++trial) {
+    const float link = 1.0f + 9.0f * static_cast<float>(rng.uniform());
+    const Vec3 normal = randomUnit(), along = normal.cross(randomUnit()).normalized();
+    const Vec3 p = 300.0f * randomUnit() + Vec3(0, 0, 600);
+    const float across = static_cast<float>(0.6 * rng.uniform() - 0.3) * link;
+    const Points points{p, p + static_cast<float>(0.9 + 0.2 * rng.uniform()) * link * along + across * normal};
+    const Vec3 d = points[1] - points[0];
+    const bool close = d.x() * d.x() + (d.y() * d.y() + d.z() * d.z()) < link * link;
+    (close ? linked : apart) += 1;
+    EXPECT_EQ(detail::linkedPatches(points, {0, 1}, link, normal).size(), close ? 1u : 2u) << "trial " << trial;
+  }
+  EXPECT_GT(linked, 5000);
+  EXPECT_GT(apart, 5000);
 }

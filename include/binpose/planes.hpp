@@ -46,4 +46,14 @@ PlaneParams planeParams(const DetectionParams& params);
 std::vector<char> largePlanes(const Points& points, const Points& normals, float density, const PlaneParams& params,
                               std::vector<Plane>* removed = nullptr);
 
+namespace detail {
+/// The connected patches of points[members] (pairs strictly closer than `link`, by the squared
+/// distance x^2 + (y^2 + z^2) of their difference, in float): lists of point indices, in the
+/// order of their first member in `members`. largePlanes's split of a plane's inliers; `normal`
+/// (a unit vector) is the plane's, and any gives the same patches (the points near a plane
+/// with it are found faster).
+std::vector<std::vector<std::uint32_t>> linkedPatches(const Points& points, const std::vector<std::uint32_t>& members, float link,
+                                                      const Vec3& normal);
+}  // namespace detail
+
 }  // namespace binpose
