@@ -24,17 +24,7 @@ float diameter(const Points& points) {
 
 void sortByCell(std::span<const std::uint32_t> cell_of, std::size_t cells, std::vector<std::uint32_t>& offsets,
                 std::vector<std::uint32_t>& order) {
-  // One array serves as counts, starts and write cursors (no copy of a cell array that can be
-  // 4 MB): offsets[c + 2] counts cell c; summed, offsets[c + 1] is where c starts; each item
-  // written moves it on, and at the end offsets[c] is where c starts, offsets[cells] the total.
-  offsets.assign(cells + 2, 0);
-  for (const auto c : cell_of)
-    if (c != kNoCell) ++offsets[c + 2];
-  for (std::size_t c = 2; c < cells + 2; ++c) offsets[c] += offsets[c - 1];
-  order.resize(offsets[cells + 1]);
-  for (std::size_t i = 0; i < cell_of.size(); ++i)
-    if (cell_of[i] != kNoCell) order[offsets[cell_of[i] + 1]++] = static_cast<std::uint32_t>(i);
-  offsets.pop_back();
+  sortByCell(cell_of, cells, offsets, order, [](std::size_t, std::uint32_t) {});
 }
 
 bool bounds(const Points& points, Vec3& lo, Vec3& hi) {

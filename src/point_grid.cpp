@@ -133,16 +133,16 @@ void PointGrid::build(const Points& points, float cell) {
     cell_of[i] = static_cast<std::uint32_t>((std::size_t(clampCell(a.z(), nz_)) * ny_ + clampCell(a.y(), ny_)) * nx_ +
                                             clampCell(a.x(), nx_));
   }
-  sortByCell(cell_of, std::size_t(nx_) * std::size_t(ny_) * std::size_t(nz_), offsets_, ids_);
-  x_.assign(ids_.size() + kPad, 0.0f);
-  y_.assign(ids_.size() + kPad, 0.0f);
-  z_.assign(ids_.size() + kPad, 0.0f);
-  for (std::size_t s = 0; s < ids_.size(); ++s) {
-    const Vec3& p = points[ids_[s]];
-    x_[s] = p.x();
-    y_[s] = p.y();
-    z_[s] = p.z();
-  }
+  // The coordinates laid out cell by cell as the points are sorted (written as read: a gather
+  // after the sort took a third of the grid's build).
+  x_.assign(finite + kPad, 0.0f);
+  y_.assign(finite + kPad, 0.0f);
+  z_.assign(finite + kPad, 0.0f);
+  sortByCell(cell_of, std::size_t(nx_) * std::size_t(ny_) * std::size_t(nz_), offsets_, ids_, [&](std::size_t i, std::uint32_t s) {
+    x_[s] = points[i].x();
+    y_[s] = points[i].y();
+    z_[s] = points[i].z();
+  });
 }
 
 PointGrid::Box PointGrid::boxAround(const Vec3& q, float radius) const {

@@ -38,6 +38,28 @@ constexpr std::uint32_t kNoCell = UINT32_MAX;
 void sortByCell(std::span<const std::uint32_t> cell_of, std::size_t cells, std::vector<std::uint32_t>& offsets,
                 std::vector<std::uint32_t>& order);
 
+/// sortByCell, calling place(i, s) as item i is written to order[s]: the items' data laid out in
+/// the sorted order in the same pass (a scatter as the items are read, not a gather after).
+template <class Place>
+void sortByCell(std::span<const std::uint32_t> cell_of, std::size_t cells, std::vector<std::uint32_t>& offsets,
+                std::vector<std::uint32_t>& order, Place place) {
+  // One array serves as counts, starts and write cursors (no copy of a cell array that can be
+  // 4 MB): offsets[c + 2] counts cell c; summed, offsets[c + 1] is where c starts; each item
+  // written moves it on, and at the end offsets[c] is where c starts, offsets[cells] the total.
+  offsets.assign(cells + 2, 0);
+  for (const auto c : cell_of)
+    if (c != kNoCell) ++offsets[c + 2];
+  for (std::size_t c = 2; c < cells + 2; ++c) offsets[c] += offsets[c - 1];
+  order.resize(offsets[cells + 1]);
+  for (std::size_t i = 0; i < cell_of.size(); ++i)
+    if (cell_of[i] != kNoCell) {
+      const std::uint32_t s = offsets[cell_of[i] + 1]++;
+      order[s] = static_cast<std::uint32_t>(i);
+      place(i, s);
+    }
+  offsets.pop_back();
+}
+
 /// Largest distance between two points (exact, O(n^2), parallel). 0 for fewer than two points.
 float diameter(const Points& points);
 
