@@ -397,18 +397,20 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
 
   // The scan's grid (one core) is built while the other core sub-samples, indexes a depth
   // image's points by pixel and starts on the normals whose neighbours the pixels give (most of
-  // them; the first core joins in when the grid is done); the rest are found through the grid
-  // after. A depth image's cells are sized from its pixel neighbours' spacing (no first grid to
-  // estimate it); any size gives the same answers.
+  // them; the first core joins in when the grid is done); the rest are found through the grid,
+  // there and then once it is built (the few met before, after). A depth image's cells are
+  // sized from its pixel neighbours' spacing (no first grid to estimate it); any size gives the
+  // same answers.
   std::optional<PointGrid> grid;
   std::optional<PixelNeighbours> pixels;
   std::vector<std::uint32_t> chosen, deferred;
   Points normals;
-  tbb::parallel_invoke([&] { grid.emplace(scan.points, 2.0f * pixelSpacing(scan)); },
+  std::atomic<const PointGrid*> grid_ready{nullptr};  // the pixels' misses go to the grid once it is built
+  tbb::parallel_invoke([&] { grid_ready.store(&grid.emplace(scan.points, 2.0f * pixelSpacing(scan)), std::memory_order_release); },
                        [&] {
                          chosen = subsampleScene(scan.points, p);
                          pixels.emplace(scan);
-                         normals = pixelNormals(*pixels, scan.points, chosen, p.k_normals, p.viewpoint, deferred);
+                         normals = pixelNormals(*pixels, scan.points, chosen, p.k_normals, p.viewpoint, deferred, &grid_ready);
                        });
   const PointGrid& scan_grid = *grid;
   finishNormals(scan_grid, scan.points, chosen, deferred, p.k_normals, p.viewpoint, normals);

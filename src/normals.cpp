@@ -169,14 +169,15 @@ Points estimateNormals(const PointGrid& grid, const Points& cloud, const Points&
 }
 
 Points pixelNormals(const PixelNeighbours& pixels, const Points& cloud, std::span<const std::uint32_t> chosen, int k,
-                    const Vec3& viewpoint, std::vector<std::uint32_t>& deferred) {
+                    const Vec3& viewpoint, std::vector<std::uint32_t>& deferred, const std::atomic<const PointGrid*>* grid) {
   Points normals(chosen.size(), Vec3::Zero());
   std::vector<char> later(chosen.size(), 0);
   planeFitNormals(
       chosen.size(), cloud, k, viewpoint, [&](std::size_t i) -> const Vec3& { return cloud[chosen[i]]; },
-      [&](std::size_t i, const Vec3&, std::uint32_t* idx, float* dist) {
+      [&](std::size_t i, const Vec3& q, std::uint32_t* idx, float* dist) {
         const auto wanted = static_cast<std::size_t>(k);
         if (pixels.knn(chosen[i], wanted, idx, dist)) return wanted;
+        if (const PointGrid* g = grid != nullptr ? grid->load(std::memory_order_acquire) : nullptr) return g->knn(q, wanted, idx, dist);
         later[i] = 1;
         return kLater;
       },

@@ -137,4 +137,10 @@ TEST(Normals, FromPixelNeighboursTheSameAsFromTheGrid) {
   for (const auto d : deferred) EXPECT_TRUE(halves[d].isZero()) << "point " << chosen[d];
   finishNormals(grid, scene.cloud.points, chosen, deferred, 8, Vec3::Zero(), halves);
   EXPECT_EQ(halves, from_grid);
+  // With the grid built while the first half runs: once it is there, the pixels' misses go to it
+  // there and then (here from the start: none left over), with the same normals.
+  const std::atomic<const PointGrid*> ready{&grid};
+  std::vector<std::uint32_t> none_left;
+  EXPECT_EQ(pixelNormals(pixels, scene.cloud.points, chosen, 8, Vec3::Zero(), none_left, &ready), from_grid);
+  EXPECT_TRUE(none_left.empty());
 }

@@ -4,6 +4,7 @@
 #include <binpose/point_grid.hpp>
 #include <binpose/types.hpp>
 
+#include <atomic>
 #include <span>
 #include <vector>
 
@@ -27,11 +28,13 @@ Points estimateNormals(const PointGrid& grid, const Points& cloud, const Points&
 Points estimateNormals(const PointGrid& grid, const PixelNeighbours* pixels, const Points& cloud,
                        std::span<const std::uint32_t> chosen, int k, const Vec3& viewpoint);
 
-/// That estimate in two halves, the first before the grid is built: the normals of the chosen
-/// points whose k nearest `pixels` proves, with the others' places in `chosen` listed in
+/// That estimate in two halves, the first while the grid is being built: the normals of the
+/// chosen points whose k nearest `pixels` proves, and of the others through the grid once
+/// `grid` (when given) holds it; the places in `chosen` of those left over are listed in
 /// `deferred` (in order; zero normals until finishNormals gives them theirs through the grid).
 Points pixelNormals(const PixelNeighbours& pixels, const Points& cloud, std::span<const std::uint32_t> chosen, int k,
-                    const Vec3& viewpoint, std::vector<std::uint32_t>& deferred);
+                    const Vec3& viewpoint, std::vector<std::uint32_t>& deferred,
+                    const std::atomic<const PointGrid*>* grid = nullptr);
 void finishNormals(const PointGrid& grid, const Points& cloud, std::span<const std::uint32_t> chosen,
                    std::span<const std::uint32_t> deferred, int k, const Vec3& viewpoint, Points& normals);
 
