@@ -146,6 +146,14 @@ TEST(VoxelSubsample, OnePointPerCubeNearestItsCentroid) {
     auto expected = kept;
     expected.push_back(static_cast<std::uint32_t>(points.size()));
     EXPECT_EQ(voxelSubsample(with_stray, voxel), expected) << "voxel " << voxel;
+    // One beyond 2^20 voxels on an axis, amid the others (the keys' path), and tiny clouds.
+    Points with_far = points;
+    with_far[points.size() / 2].y() = 3e6f * voxel;
+    EXPECT_EQ(voxelSubsample(with_far, voxel), voxelReference(with_far, voxel)) << "voxel " << voxel;
+    for (const std::size_t n : {1, 2, 3, 5}) {
+      const Points few(points.begin(), points.begin() + static_cast<long>(n));
+      EXPECT_EQ(voxelSubsample(few, 100.0f), voxelReference(few, 100.0f)) << n << " points";
+    }
   }
 }
 
