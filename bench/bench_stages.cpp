@@ -130,6 +130,27 @@ void BM_NormalsAtScanPoints(benchmark::State& state) {
 }
 BENCHMARK(BM_NormalsAtScanPoints)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
+// The depth image's pixel index alone (Arg 0), and the 8 nearest of the sampled points from it
+// (Arg 1: the index built once; the points it cannot prove are counted, not searched).
+void BM_PixelNeighbours(benchmark::State& state) {
+  const Fixture& f = fixture();
+  if (state.range(0) == 0) {
+    for (auto _ : state) benchmark::DoNotOptimize(PixelNeighbours(f.bin.cloud));
+    return;
+  }
+  const PixelNeighbours pixels(f.bin.cloud);
+  std::uint32_t idx[8];
+  float d2[8];
+  std::size_t missed = 0;
+  for (auto _ : state) {
+    missed = 0;
+    for (const auto i : f.scene.scan_index) missed += !pixels.knn(i, 8, idx, d2);
+    benchmark::DoNotOptimize(idx);
+  }
+  state.counters["missed"] = static_cast<double>(missed);
+}
+BENCHMARK(BM_PixelNeighbours)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
 void BM_Planes(benchmark::State& state) {  // the bin's floor and walls found in the sampled scene
   const Fixture& f = fixture();
   std::size_t flat = 0;

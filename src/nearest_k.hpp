@@ -1,6 +1,6 @@
 #pragma once
-// Internal: the k nearest seen so far, as the neighbour searches of PointGrid and
-// PixelNeighbours keep them (the same order, so that both give the same answer).
+// Internal: the k nearest seen so far, as PointGrid's neighbour searches keep them
+// (PixelNeighbours keeps them in the same order as keys, so that both give the same answer).
 #include <cstddef>
 #include <cstdint>
 

@@ -6,6 +6,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 namespace binpose {
@@ -14,27 +15,28 @@ class PixelNeighbours {
  public:
   /// The cloud's points by pixel. Usable when the cloud is a pinhole camera's image
   /// (PointCloud::fx and fy given, every point in front of the camera) with one pixel per point,
-  /// none twice; otherwise knn() always answers false. The cloud must outlive this.
+  /// none twice, in pixel order (as the readers give them); otherwise knn() always answers
+  /// false. The cloud must outlive this.
   explicit PixelNeighbours(const PointCloud& cloud);
 
-  [[nodiscard]] bool usable() const { return !at_.empty(); }
+  [[nodiscard]] bool usable() const { return at_ != nullptr; }
 
   /// The k nearest points of the cloud's point `i` (itself included), as PointGrid::knn gives
   /// them (indices and squared distances, nearest first, equal distances by index), found among
-  /// the points of the (2 w + 1) x (2 w + 1) pixels around i's. True only when they are proved
-  /// the nearest of the whole cloud: any other point is seen through a pixel at least w + 1
-  /// columns or rows away, so it lies beyond a plane through the camera at least `reach` from
-  /// the point, and the k-th found lies closer than that. False otherwise (then ask the grid).
+  /// the points of the (2 w + 1) x (2 w + 1) pixels around i's (w = 1, then 4). True only when
+  /// they are proved the nearest of the whole cloud: any other point is seen through a pixel at
+  /// least w + 1 columns or rows away, so it lies beyond a plane through the camera at least
+  /// `reach` from the point, and the k-th found lies closer than that. False otherwise, and for
+  /// k over 32 (then ask the grid); the outputs are written only when true.
   bool knn(std::uint32_t i, std::size_t k, std::uint32_t* indices, float* sq_dists) const;
 
  private:
   [[nodiscard]] float reach(const Vec3& q, int pixels) const;
 
   const PointCloud& cloud_;
-  std::vector<Eigen::Vector2i> offsets_;  ///< the largest window's pixels (dx, dy), ring by ring
-  std::vector<std::ptrdiff_t> steps_;     ///< the same as steps in the image, dy * width + dx
-  std::vector<std::size_t> ring_end_;     ///< where each window's offsets end
-  std::vector<std::int32_t> at_;  ///< the point seen through each pixel (row-major), -1 for none
+  std::ptrdiff_t pitch_ = 0;      ///< a padded row's length (the image's width and a margin each side)
+  std::unique_ptr<std::int32_t[]> at_;  ///< the point seen through each padded pixel (row-major), -1 for none
+  std::unique_ptr<float[]> x_, y_, z_;  ///< its coordinates, +inf for none: a row's are side by side
 };
 
 }  // namespace binpose
