@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fmt/format.h>
+#include <limits>
 #include <numeric>
 #include <tbb/parallel_for.h>
 
@@ -37,10 +38,10 @@ bool iterativeNormal(const Eigen::Matrix3d& W, Vec3& normal) {
 /// of them on the bin's floor and walls, whose coordinates along the scan's axes are zero or
 /// nearly so. (computeDirect's own eigenvectors, used alone, changed normals in their last
 /// bits, and the votes followed: rounds 6, 11 and 27 of docs/speed_history.md.)
-bool closedFormNormal(const Eigen::Matrix3d& W, Eigen::Vector3d& v) {
+bool closedFormNormal(const Eigen::Matrix3d& W, Eigen::Vector3d& v, Eigen::Vector3d& lambda) {
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> roots;
   roots.computeDirect(W, Eigen::EigenvaluesOnly);
-  const Eigen::Vector3d lambda = roots.eigenvalues();  // ascending
+  lambda = roots.eigenvalues();  // ascending
   const double norm = std::max(std::abs(lambda[0]), std::abs(lambda[2]));  // ||W||
   const double gap = lambda[1] - lambda[0];
   if (!(norm > 0) || !std::isfinite(norm) || !(gap >= 1e-3 * norm)) return false;
@@ -63,8 +64,8 @@ bool closedFormNormal(const Eigen::Matrix3d& W, Eigen::Vector3d& v) {
 namespace detail {
 
 bool scatterNormal(const Eigen::Matrix3d& W, Vec3& normal, bool closed_form, bool* answered_closed) {
-  Eigen::Vector3d v;
-  const bool closed = closed_form && closedFormNormal(W, v);
+  Eigen::Vector3d v, lambda;
+  const bool closed = closed_form && closedFormNormal(W, v, lambda);
   if (answered_closed != nullptr) *answered_closed = closed;
   if (closed) {
     normal = v.cast<float>();
@@ -77,9 +78,33 @@ bool scatterNormal(const Eigen::Matrix3d& W, Vec3& normal, bool closed_form, boo
 
 namespace {
 
-/// The plane-fit normal of the `count` points at(0), ..., at(count - 1) (eq. 33-38).
+/// What a fit left for later gives: scatterNormal's normal (the solver's), turned towards the
+/// viewpoint as normalFrom turns it.
+enum class Fit { kNormal, kDegenerate, kPending };
+
+/// scatterNormal, or with `pending` (not null) kPending where it would need the iterative solver
+/// and W is sure not to be degenerate: W and its eigenvalues kept in *pending. The closed
+/// form's eigenvalues lie within about sqrt(eps) ||W|| of the exact ones even where roots
+/// cluster, so a second least over a millionth of the largest keeps the solver's (within a
+/// few eps ||W||) over its 1e-12 bound.
+Fit scatterFit(const Eigen::Matrix3d& W, Vec3& normal, PendingFit* pending) {
+  Eigen::Vector3d v, lambda;
+  if (closedFormNormal(W, v, lambda)) {
+    normal = v.cast<float>();
+    return normalizeSafe(normal) ? Fit::kNormal : Fit::kDegenerate;
+  }
+  if (pending != nullptr && lambda.allFinite() && lambda[2] > 0 && lambda[1] >= 1e-6 * lambda[2]) {
+    pending->W = W;
+    pending->lambda = lambda;
+    return Fit::kPending;
+  }
+  return iterativeNormal(W, normal) ? Fit::kNormal : Fit::kDegenerate;
+}
+
+/// The scatter matrix W = Q^T Q (eq. 33-35) of the `count` points at(0), ..., at(count - 1)
+/// about their centroid; false for fewer than 3 points or a non-finite one.
 template <class At>
-bool planeNormal(std::size_t count, At at, Vec3& normal) {
+bool scatterOf(std::size_t count, At at, Eigen::Matrix3d& W) {
   if (count < 3) return false;
   double cx = 0, cy = 0, cz = 0;
   for (std::size_t j = 0; j < count; ++j) {
@@ -106,9 +131,15 @@ bool planeNormal(std::size_t count, At at, Vec3& normal) {
     zy += z * y;
     zz += z * z;
   }
-  Eigen::Matrix3d W;
   W << xx, yx, zx, yx, yy, zy, zx, zy, zz;
-  return detail::scatterNormal(W, normal);
+  return true;
+}
+
+/// The plane-fit normal of the `count` points at(0), ..., at(count - 1) (eq. 33-38).
+template <class At>
+bool planeNormal(std::size_t count, At at, Vec3& normal) {
+  Eigen::Matrix3d W;
+  return scatterOf(count, at, W) && detail::scatterNormal(W, normal);
 }
 
 }  // namespace
@@ -125,11 +156,19 @@ Points estimateNormals(const Points& cloud, const Points& queries, int k, const 
 namespace {
 
 /// The plane-fit normal of query q from its `found` nearest (indices into cloud, any order),
-/// oriented towards the viewpoint; zero when the neighbourhood is degenerate.
-Vec3 normalFrom(const Points& cloud, const Vec3& q, std::uint32_t* idx, std::size_t found, const Vec3& viewpoint) {
+/// oriented towards the viewpoint; zero when the neighbourhood is degenerate. With `pending`
+/// (not null), NaN where the fit is left pending in it (scatterFit).
+Vec3 normalFrom(const Points& cloud, const Vec3& q, std::uint32_t* idx, std::size_t found, const Vec3& viewpoint,
+                PendingFit* pending = nullptr) {
   std::sort(idx, idx + found);  // the fit's sums in one order, whatever the search's
+  Eigen::Matrix3d W;
   Vec3 n;
-  if (!planeNormal(found, [&](std::size_t j) -> const Vec3& { return cloud[idx[j]]; }, n)) return Vec3::Zero();
+  if (!scatterOf(found, [&](std::size_t j) -> const Vec3& { return cloud[idx[j]]; }, W)) return Vec3::Zero();
+  switch (scatterFit(W, n, pending)) {
+    case Fit::kDegenerate: return Vec3::Zero();
+    case Fit::kPending: return Vec3::Constant(std::numeric_limits<float>::quiet_NaN());
+    case Fit::kNormal: break;
+  }
   if (n.dot(viewpoint - q) < 0) n = -n;  // towards the sensor
   return n;
 }
@@ -142,7 +181,7 @@ constexpr std::size_t kLater = ~std::size_t{0};
 
 template <class Query, class Nearest, class Store>
 void planeFitNormals(std::size_t count, const Points& cloud, int k, const Vec3& viewpoint, Query query, Nearest nearest,
-                     Store store) {
+                     Store store, std::vector<PendingFit>* pending = nullptr) {
   if (k < 3) throw Error(fmt::format("normal estimation needs k >= 3 neighbours, got {}", k));
   if (cloud.size() < 3) return;
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 256), [&](const auto& range) {
@@ -152,7 +191,8 @@ void planeFitNormals(std::size_t count, const Points& cloud, int k, const Vec3& 
       const Vec3& q = query(i);
       if (!q.allFinite()) continue;
       const std::size_t found = nearest(i, q, idx.data(), dist.data());
-      if (found != kLater) store(i, normalFrom(cloud, q, idx.data(), found, viewpoint));
+      if (found != kLater)
+        store(i, normalFrom(cloud, q, idx.data(), found, viewpoint, pending != nullptr ? &(*pending)[i] : nullptr));
     }
   });
 }
@@ -169,7 +209,9 @@ Points estimateNormals(const PointGrid& grid, const Points& cloud, const Points&
 }
 
 Points pixelNormals(const PixelNeighbours& pixels, const Points& cloud, std::span<const std::uint32_t> chosen, int k,
-                    const Vec3& viewpoint, std::vector<std::uint32_t>& deferred, const std::atomic<const PointGrid*>* grid) {
+                    const Vec3& viewpoint, std::vector<std::uint32_t>& deferred, const std::atomic<const PointGrid*>* grid,
+                    std::vector<PendingFit>* pending) {
+  if (pending != nullptr) pending->resize(chosen.size());
   Points normals(chosen.size(), Vec3::Zero());
   std::vector<char> later(chosen.size(), 0);
   planeFitNormals(
@@ -181,7 +223,7 @@ Points pixelNormals(const PixelNeighbours& pixels, const Points& cloud, std::spa
         later[i] = 1;
         return kLater;
       },
-      [&](std::size_t i, const Vec3& n) { normals[i] = n; });
+      [&](std::size_t i, const Vec3& n) { normals[i] = n; }, pending);
   deferred.clear();
   for (std::size_t i = 0; i < chosen.size(); ++i)
     if (later[i]) deferred.push_back(static_cast<std::uint32_t>(i));
@@ -189,11 +231,38 @@ Points pixelNormals(const PixelNeighbours& pixels, const Points& cloud, std::spa
 }
 
 void finishNormals(const PointGrid& grid, const Points& cloud, std::span<const std::uint32_t> chosen,
-                   std::span<const std::uint32_t> deferred, int k, const Vec3& viewpoint, Points& normals) {
+                   std::span<const std::uint32_t> deferred, int k, const Vec3& viewpoint, Points& normals,
+                   std::vector<PendingFit>* pending) {
+  std::vector<PendingFit> fits(pending != nullptr ? deferred.size() : 0);  // then moved to their places
   planeFitNormals(
       deferred.size(), cloud, k, viewpoint, [&](std::size_t d) -> const Vec3& { return cloud[chosen[deferred[d]]]; },
       [&](std::size_t, const Vec3& q, std::uint32_t* idx, float* dist) { return grid.knn(q, static_cast<std::size_t>(k), idx, dist); },
-      [&](std::size_t d, const Vec3& n) { normals[deferred[d]] = n; });
+      [&](std::size_t d, const Vec3& n) { normals[deferred[d]] = n; }, pending != nullptr ? &fits : nullptr);
+  if (pending != nullptr)
+    for (std::size_t d = 0; d < deferred.size(); ++d) (*pending)[deferred[d]] = fits[d];
+}
+
+bool finishPending(const PendingFit& fit, const Vec3& q, const Vec3& viewpoint, Vec3& normal) {
+  if (!iterativeNormal(fit.W, normal)) return false;
+  if (normal.dot(viewpoint - q) < 0) normal = -normal;  // towards the sensor, as normalFrom
+  return true;
+}
+
+int pendingAligned(const PendingFit& fit, const Vec3& m, float min_cos) {
+  // With W's eigenvalues l0 <= l1 <= l2 and u's squared cosines c_i^2 with their eigenvectors
+  // (summing to 1), the Rayleigh quotient r = u^T W u = sum l_i c_i^2 bounds c_0^2 from both
+  // sides: (l1 - r) / (l1 - l0) <= c_0^2 <= (l2 - r) / (l2 - l0). The normal is the first
+  // eigenvector to within a float's rounding and the solver's eps ||W|| / gap, and the closed
+  // form's eigenvalues err by far less than the margin's 1e-3 on the cosine.
+  const Eigen::Vector3d& l = fit.lambda;
+  if (!(l[1] - l[0] >= 1e-3 * l[2])) return -1;
+  const Eigen::Vector3d u = m.cast<double>().normalized();
+  const double r = u.dot(fit.W * u);
+  const double lower = (l[1] - r) / (l[1] - l[0]), upper = (l[2] - r) / (l[2] - l[0]);
+  constexpr double kMargin = 1e-3;
+  if (lower >= (double(min_cos) + kMargin) * (double(min_cos) + kMargin)) return 1;
+  if (double(min_cos) > kMargin && upper <= (double(min_cos) - kMargin) * (double(min_cos) - kMargin)) return 0;
+  return -1;
 }
 
 Points estimateNormals(const PointGrid& grid, const PixelNeighbours* pixels, const Points& cloud,

@@ -15,10 +15,6 @@
 namespace binpose {
 namespace {
 
-bool onPlane(const Vec3& p, const Vec3& n, const Plane& plane, float tolerance, float min_cos) {
-  return plane.distance(p) <= tolerance && std::abs(plane.normal.dot(n)) >= min_cos;
-}
-
 /// Connected patches of `members` (links shorter than `link`) by a flood fill through a grid of
 /// them: any box, any link.
 std::vector<std::vector<std::uint32_t>> floodPatches(const Points& points, const std::vector<std::uint32_t>& members, float link) {
@@ -142,7 +138,7 @@ std::vector<std::vector<std::uint32_t>> linkedPatches(const Points& points, cons
 
 namespace {
 
-/// How many probe points lie on `plane`: onPlane with the same sums in the same order, on SIMD
+/// How many probe points lie on `plane` (largePlanes's inlier test, the same sums in the same order), on SIMD
 /// lanes (300 hypotheses a plane made this loop half of the plane search's time).
 __attribute__((target_clones("avx2", "default")))
 std::size_t countOnPlane(const detail::OrientedLanes& probe, const Plane& plane, float tolerance, float min_cos) {
@@ -174,8 +170,9 @@ PlaneParams planeParams(const DetectionParams& params) {
 }
 
 std::vector<char> largePlanes(const Points& points, const Points& normals, float density, const PlaneParams& params,
-                              std::vector<Plane>* removed) {
-  if (points.size() != normals.size()) throw Error("largePlanes: one normal per point needed");
+                              std::vector<Plane>* removed, const LateNormals* late) {
+  if (points.size() != normals.size() || (late != nullptr && late->pending->size() != points.size()))
+    throw Error("largePlanes: one normal per point needed");
   if (!(density > 0) || !(params.min_area > 0) || !(params.tolerance > 0) || !(params.link > 0))
     throw Error(fmt::format("plane removal needs positive density, area, tolerance and link, got {}, {}, {}, {}", density,
                             params.min_area, params.tolerance, params.link));
@@ -183,7 +180,20 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
   const auto min_count = static_cast<std::size_t>(std::ceil(params.min_area * density));
   const float min_cos = std::cos(params.max_angle);
   Rng rng(params.seed);
-  std::vector<std::uint32_t> left, probe, inliers;
+  std::vector<std::uint32_t> left, probe, inliers, drawn;
+  auto finish = [&](std::span<const std::uint32_t> which) {
+    if (late != nullptr) late->finish(which);
+  };
+  // A point within the tolerance of the plane, its normal within max_angle of the plane's (a
+  // pending normal's angle settled from its fit where it can be).
+  auto inlier = [&](std::uint32_t i, const Plane& on) {
+    if (!(on.distance(points[i]) <= params.tolerance)) return false;
+    if (late != nullptr && (*late->pending)[i]) {
+      if (const int aligned = late->aligned(i, on.normal, min_cos); aligned >= 0) return aligned == 1;
+      finish(std::span<const std::uint32_t>(&i, 1));
+    }
+    return std::abs(on.normal.dot(normals[i])) >= min_cos;
+  };
   detail::OrientedLanes probe_points;  // the points a RANSAC hypothesis is scored on
   std::vector<Plane> hypotheses;
   std::vector<std::size_t> counts;
@@ -207,13 +217,14 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
     probe.clear();
     const std::size_t step = std::max<std::size_t>(1, left.size() / 1000);
     for (std::size_t k = 0; k < left.size(); k += step) probe.push_back(left[k]);
+    finish(probe);
     probe_points.assign(points, normals, probe.size(), [&](std::size_t k) { return probe[k]; });
     // The hypotheses drawn in turn, scored side by side, the first of the highest score kept.
+    drawn.clear();
+    for (int t = 0; t < params.trials; ++t) drawn.push_back(left[rng.below(left.size())]);
+    finish(drawn);
     hypotheses.clear();
-    for (int t = 0; t < params.trials; ++t) {
-      const std::uint32_t s = left[rng.below(left.size())];
-      hypotheses.push_back({normals[s], normals[s].dot(points[s])});
-    }
+    for (const auto s : drawn) hypotheses.push_back({normals[s], normals[s].dot(points[s])});
     counts.resize(hypotheses.size());
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, hypotheses.size(), 32), [&](const auto& range) {
       for (std::size_t t = range.begin(); t < range.end(); ++t)
@@ -228,7 +239,7 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
       }
     inliers.clear();
     for (const auto i : left)
-      if (onPlane(points[i], normals[i], best, params.tolerance, min_cos)) inliers.push_back(i);
+      if (inlier(i, best)) inliers.push_back(i);
     if (inliers.size() < min_count) break;  // the largest plane left is too small: done
     for (const auto i : inliers) tried[i] = 1;  // small patches of it stay in the scene, and are not tried again
     std::size_t behind = 0;

@@ -4,7 +4,9 @@
 #include <binpose/io.hpp>
 #include <binpose/normals.hpp>
 #include <binpose/pixel_neighbours.hpp>
+#include <binpose/planes.hpp>
 #include <binpose/point_grid.hpp>
+#include <binpose/scene.hpp>
 #include <binpose/shapes.hpp>
 #include <binpose/simulation.hpp>
 
@@ -153,4 +155,86 @@ TEST(Normals, FromPixelNeighboursTheSameAsFromTheGrid) {
   std::vector<std::uint32_t> none_left;
   EXPECT_EQ(pixelNormals(pixels, scene.cloud.points, chosen, 8, Vec3::Zero(), none_left, &ready), from_grid);
   EXPECT_TRUE(none_left.empty());
+}
+
+TEST(Normals, PendingFitsGiveTheSameNormalsAndPlanes) {
+  // The detector leaves the normals that need the iterative solver pending until the plane
+  // search asks for them. Each pending fit gives the normal computed at once; its angle, where
+  // settled from the fit alone, is the normal's; and the search finds the same planes with the
+  // same normals for the points it keeps, leaving some fits never finished.
+  const SimulatedScene scene = capsInBin();
+  const Points& cloud = scene.cloud.points;
+  const PointGrid grid(cloud);
+  const PixelNeighbours pixels(scene.cloud);
+  const std::vector<std::uint32_t> chosen = voxelSubsample(cloud, 2.5f);
+  const Vec3 view = Vec3::Zero();
+  std::vector<std::uint32_t> deferred;
+  Points eager = pixelNormals(pixels, cloud, chosen, 8, view, deferred);
+  finishNormals(grid, cloud, chosen, deferred, 8, view, eager);
+  std::vector<PendingFit> fits;
+  Points late = pixelNormals(pixels, cloud, chosen, 8, view, deferred, nullptr, &fits);
+  finishNormals(grid, cloud, chosen, deferred, 8, view, late, &fits);
+  ASSERT_EQ(fits.size(), chosen.size());
+  const float min_cos = std::cos(PlaneParams{}.max_angle);
+  std::size_t pending = 0, settled = 0;
+  for (std::size_t i = 0; i < chosen.size(); ++i) {
+    if (!std::isnan(late[i].x())) {
+      EXPECT_EQ(late[i], eager[i]) << "point " << chosen[i];
+      continue;
+    }
+    ++pending;
+    Vec3 n;
+    ASSERT_TRUE(finishPending(fits[i], cloud[chosen[i]], view, n));
+    EXPECT_EQ(n, eager[i]) << "point " << chosen[i];
+    for (const Vec3& m : {Vec3(Vec3::UnitX()), Vec3(Vec3::UnitY()), Vec3(Vec3::UnitZ()), Vec3(Vec3(1, 1, 4).normalized()),
+                          Vec3(Vec3(-2, 1, 1).normalized())}) {
+      const int aligned = pendingAligned(fits[i], m, min_cos);
+      if (aligned < 0) continue;
+      ++settled;
+      EXPECT_EQ(aligned == 1, std::abs(m.dot(eager[i])) >= min_cos) << "point " << chosen[i];
+    }
+  }
+  EXPECT_GT(pending, chosen.size() / 20);
+  EXPECT_GT(settled, pending);
+  // The plane search on both.
+  const PreparedScene all = orientedScene(cloud, chosen, eager);
+  PreparedScene some = orientedScene(cloud, chosen, late);
+  ASSERT_EQ(some.points.size(), all.points.size());
+  std::vector<char> unfinished(some.points.size(), 0);
+  std::vector<std::uint32_t> place(some.points.size());
+  for (std::size_t j = 0, i = 0; j < some.points.size(); ++j) {
+    while (chosen[i] != some.scan_index[j]) ++i;
+    place[j] = static_cast<std::uint32_t>(i);
+    unfinished[j] = std::isnan(some.normals[j].x());
+  }
+  LateNormals source;
+  source.pending = &unfinished;
+  source.finish = [&](std::span<const std::uint32_t> which) {
+    for (const auto j : which)
+      if (unfinished[j]) {
+        unfinished[j] = 0;
+        ASSERT_TRUE(finishPending(fits[place[j]], some.points[j], view, some.normals[j]));
+      }
+  };
+  source.aligned = [&](std::uint32_t j, const Vec3& m, float c) { return pendingAligned(fits[place[j]], m, c); };
+  const float density = 1.0f / (2.5f * 2.5f);
+  std::vector<Plane> planes_all, planes_some;
+  const std::vector<char> flat = largePlanes(all.points, all.normals, density, PlaneParams{}, &planes_all);
+  EXPECT_EQ(largePlanes(some.points, some.normals, density, PlaneParams{}, &planes_some, &source), flat);
+  ASSERT_EQ(planes_some.size(), planes_all.size());
+  EXPECT_GE(planes_all.size(), 1u);
+  std::vector<std::uint32_t> kept;  // their normals computed after the search, as the detector does
+  for (std::uint32_t j = 0; j < flat.size(); ++j)
+    if (!flat[j]) kept.push_back(j);
+  source.finish(kept);
+  std::size_t never = 0;
+  for (std::size_t j = 0; j < flat.size(); ++j) {
+    if (unfinished[j]) {
+      ++never;
+      EXPECT_TRUE(flat[j]);
+      continue;
+    }
+    EXPECT_EQ(some.normals[j], all.normals[j]) << "point " << some.scan_index[j];
+  }
+  EXPECT_GT(never, 0u);
 }

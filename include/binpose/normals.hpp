@@ -28,15 +28,35 @@ Points estimateNormals(const PointGrid& grid, const Points& cloud, const Points&
 Points estimateNormals(const PointGrid& grid, const PixelNeighbours* pixels, const Points& cloud,
                        std::span<const std::uint32_t> chosen, int k, const Vec3& viewpoint);
 
+/// A plane fit whose eigenvector is left for later: its scatter matrix W (eq. 33-35) and W's
+/// eigenvalues in closed form, ascending.
+struct PendingFit {
+  Eigen::Matrix3d W;
+  Eigen::Vector3d lambda;
+};
+
 /// That estimate in two halves, the first while the grid is being built: the normals of the
 /// chosen points whose k nearest `pixels` proves, and of the others through the grid once
 /// `grid` (when given) holds it; the places in `chosen` of those left over are listed in
 /// `deferred` (in order; zero normals until finishNormals gives them theirs through the grid).
+/// With `pending` (one per chosen point), a normal that would need Eigen's iterative solver
+/// (a third of a bin's, most of them on its floor and walls, which plane removal drops) is
+/// left NaN, its fit kept in its place in `pending` (finishPending gives the same normal),
+/// where its neighbourhood is sure not to be degenerate.
 Points pixelNormals(const PixelNeighbours& pixels, const Points& cloud, std::span<const std::uint32_t> chosen, int k,
                     const Vec3& viewpoint, std::vector<std::uint32_t>& deferred,
-                    const std::atomic<const PointGrid*>* grid = nullptr);
+                    const std::atomic<const PointGrid*>* grid = nullptr, std::vector<PendingFit>* pending = nullptr);
 void finishNormals(const PointGrid& grid, const Points& cloud, std::span<const std::uint32_t> chosen,
-                   std::span<const std::uint32_t> deferred, int k, const Vec3& viewpoint, Points& normals);
+                   std::span<const std::uint32_t> deferred, int k, const Vec3& viewpoint, Points& normals,
+                   std::vector<PendingFit>* pending = nullptr);
+
+/// A pending fit's normal at point q, as the estimate would have given it; false when the
+/// solver finds it degenerate after all (which its eigenvalues rule out).
+bool finishPending(const PendingFit& fit, const Vec3& q, const Vec3& viewpoint, Vec3& normal);
+
+/// Whether a pending fit's normal n would pass |m . n| >= min_cos (m a unit vector), settled
+/// from its eigenvalues without the solver: 1 yes, 0 no, -1 too close to call (then finish it).
+int pendingAligned(const PendingFit& fit, const Vec3& m, float min_cos);
 
 namespace detail {
 /// Eq. 36-38 on a scatter matrix W (symmetric): the unit eigenvector of its least eigenvalue in

@@ -7,6 +7,8 @@
 
 #include <cmath>
 #include <cstdint>
+#include <functional>
+#include <span>
 #include <vector>
 
 namespace binpose {
@@ -35,6 +37,17 @@ struct Plane {
 /// plane_tolerance, patches linked over 2.5 sample spacings (1 / sqrt(rho_sub)), its seed.
 PlaneParams planeParams(const DetectionParams& params);
 
+/// Normals not all computed when the planes are looked for (see pixelNormals's pending fits):
+/// `pending` flags the points whose normal is still to come; `finish(indices)` computes those
+/// among `indices` into the normals largePlanes was given, clearing their flags;
+/// `aligned(i, m, min_cos)` settles |m . n_i| >= min_cos for a pending point where it can
+/// (1 yes, 0 no, -1 not without its normal).
+struct LateNormals {
+  const std::vector<char>* pending = nullptr;
+  std::function<void(std::span<const std::uint32_t>)> finish;
+  std::function<int(std::uint32_t, const Vec3&, float)> aligned;
+};
+
 /// Marks the points of large planes: RANSAC on oriented points (each hypothesis is the plane of
 /// one point and its normal), then the inliers split into connected patches, and every patch of
 /// at least `min_area` (at the points' density `density`, points/mm^2) removed. Only background
@@ -42,9 +55,11 @@ PlaneParams planeParams(const DetectionParams& params);
 /// layer of parts lying flat, touching one another, have the floor behind them and stay, and
 /// coplanar faces of parts that do not touch stay. Normals face the sensor. Returns one flag per
 /// point: 1 on a removed plane; `removed`, when given, receives the planes that lost a patch.
-/// Deterministic for a given seed.
+/// Deterministic for a given seed. With `late`, only the normals the search needs are computed
+/// (its hypotheses', its probes', the points near a plane whose angle the fit cannot settle):
+/// the same flags as with every normal.
 std::vector<char> largePlanes(const Points& points, const Points& normals, float density, const PlaneParams& params,
-                              std::vector<Plane>* removed = nullptr);
+                              std::vector<Plane>* removed = nullptr, const LateNormals* late = nullptr);
 
 namespace detail {
 /// The connected patches of points[members] (pairs strictly closer than `link`, by the squared
