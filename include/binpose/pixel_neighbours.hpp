@@ -19,7 +19,7 @@ class PixelNeighbours {
   /// false. The cloud must outlive this.
   explicit PixelNeighbours(const PointCloud& cloud);
 
-  [[nodiscard]] bool usable() const { return at_ != nullptr; }
+  [[nodiscard]] bool usable() const { return first_ != nullptr; }
 
   /// The k nearest points of the cloud's point `i` (itself included), as PointGrid::knn gives
   /// them (indices and squared distances, nearest first, equal distances by index), found among
@@ -34,9 +34,10 @@ class PixelNeighbours {
   [[nodiscard]] float reach(const Vec3& q, int pixels) const;
 
   const PointCloud& cloud_;
-  std::ptrdiff_t pitch_ = 0;      ///< a padded row's length (the image's width and a margin each side)
-  std::unique_ptr<std::int32_t[]> at_;  ///< the point seen through each padded pixel (row-major), -1 for none
-  std::unique_ptr<float[]> x_, y_, z_;  ///< its coordinates, +inf for none: a row's are side by side
+  std::ptrdiff_t pitch_ = 0;  ///< a row's pixels with the margins
+  /// For each pixel of the image with a margin all round (row-major), the number of points seen
+  /// through the pixels before it: a row's points between two columns are contiguous.
+  std::unique_ptr<std::int32_t[]> first_;
 };
 
 }  // namespace binpose
