@@ -482,6 +482,8 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
                          evidence_slot->setGrazingAngle(p.grazing_angle);
                        });
   evidence_slot->setBackground(std::move(planes), std::min(p.verify_tolerance, p.plane_tolerance));
+  std::vector<PendingFit>().swap(fits);  // neither is needed any more: their memory back before the votes
+  pixels.reset();
   result.plane_points = result.sampled_points - scene.points.size();
   std::vector<std::vector<std::uint32_t>> groups;
   const auto max_list = static_cast<std::uint32_t>(p.max_key_share * static_cast<float>(model.size()));
