@@ -78,15 +78,14 @@ bool scatterNormal(const Eigen::Matrix3d& W, Vec3& normal, bool closed_form, boo
 
 namespace {
 
-/// What a fit left for later gives: scatterNormal's normal (the solver's), turned towards the
-/// viewpoint as normalFrom turns it.
+/// A plane fit's outcome: its normal, a degenerate neighbourhood, or its normal left pending.
 enum class Fit { kNormal, kDegenerate, kPending };
 
 /// scatterNormal, or with `pending` (not null) kPending where it would need the iterative solver
 /// and W is sure not to be degenerate: W and its eigenvalues kept in *pending. The closed
-/// form's eigenvalues lie within about sqrt(eps) ||W|| of the exact ones even where roots
-/// cluster, so a second least over a millionth of the largest keeps the solver's (within a
-/// few eps ||W||) over its 1e-12 bound.
+/// form's eigenvalues lie within about sqrt(eps) ||W|| (1.5e-8) of the exact ones even where
+/// two cluster, so a second least over a millionth of the largest keeps the solver's (within a
+/// few eps ||W||) over its 1e-12 bound. (Should the solver still fail, finishPending says so.)
 Fit scatterFit(const Eigen::Matrix3d& W, Vec3& normal, PendingFit* pending) {
   Eigen::Vector3d v, lambda;
   if (closedFormNormal(W, v, lambda)) {

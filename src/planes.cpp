@@ -138,8 +138,8 @@ std::vector<std::vector<std::uint32_t>> linkedPatches(const Points& points, cons
 
 namespace {
 
-/// How many probe points lie on `plane` (largePlanes's inlier test, the same sums in the same order), on SIMD
-/// lanes (300 hypotheses a plane made this loop half of the plane search's time).
+/// How many probe points lie on `plane` (largePlanes's inlier test, the same sums in the same
+/// order), on SIMD lanes (300 hypotheses a plane made this loop half of the plane search's time).
 __attribute__((target_clones("avx2", "default")))
 std::size_t countOnPlane(const detail::OrientedLanes& probe, const Plane& plane, float tolerance, float min_cos) {
   const float* x = probe.c[0].data();
@@ -171,8 +171,9 @@ PlaneParams planeParams(const DetectionParams& params) {
 
 std::vector<char> largePlanes(const Points& points, const Points& normals, float density, const PlaneParams& params,
                               std::vector<Plane>* removed, const LateNormals* late) {
-  if (points.size() != normals.size() || (late != nullptr && late->pending->size() != points.size()))
-    throw Error("largePlanes: one normal per point needed");
+  if (points.size() != normals.size()) throw Error("largePlanes: one normal per point needed");
+  if (late != nullptr && (late->pending == nullptr || late->pending->size() != points.size() || !late->finish || !late->aligned))
+    throw Error("largePlanes: late normals need one pending flag per point, finish and aligned");
   if (!(density > 0) || !(params.min_area > 0) || !(params.tolerance > 0) || !(params.link > 0))
     throw Error(fmt::format("plane removal needs positive density, area, tolerance and link, got {}, {}, {}, {}", density,
                             params.min_area, params.tolerance, params.link));

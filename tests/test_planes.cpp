@@ -96,6 +96,19 @@ TEST(Planes, AbsurdInputIsRefused) {
   Points fewer(bin.normals.begin(), bin.normals.end() - 1);
   EXPECT_THROW((void)largePlanes(bin.points, fewer, 0.0625f, PlaneParams{}), Error);
   EXPECT_TRUE(largePlanes({}, {}, 0.0625f, PlaneParams{}).empty());
+  // Late normals without their flags, or with too few.
+  LateNormals late;
+  late.finish = [](std::span<const std::uint32_t>) {};
+  late.aligned = [](std::uint32_t, const Vec3&, float) { return -1; };
+  EXPECT_THROW((void)largePlanes(bin.points, bin.normals, 0.0625f, PlaneParams{}, nullptr, &late), Error);
+  const std::vector<char> short_flags(bin.points.size() - 1, 0);
+  late.pending = &short_flags;
+  EXPECT_THROW((void)largePlanes(bin.points, bin.normals, 0.0625f, PlaneParams{}, nullptr, &late), Error);
+  // With none pending, the same flags as without.
+  const std::vector<char> none(bin.points.size(), 0);
+  late.pending = &none;
+  EXPECT_EQ(largePlanes(bin.points, bin.normals, 0.0625f, PlaneParams{}, nullptr, &late),
+            largePlanes(bin.points, bin.normals, 0.0625f, PlaneParams{}));
 }
 
 // A plane's inliers are split into patches joined by links shorter than PlaneParams::link
