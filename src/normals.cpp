@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <fmt/format.h>
 #include <limits>
 #include <numeric>
@@ -154,6 +155,9 @@ Points estimateNormals(const Points& cloud, const Points& queries, int k, const 
 
 namespace {
 
+/// n turned towards the sensor at `viewpoint` from the point q it was fitted at.
+Vec3 facingViewpoint(const Vec3& n, const Vec3& q, const Vec3& viewpoint) { return n.dot(viewpoint - q) < 0 ? Vec3(-n) : n; }
+
 /// The plane-fit normal of query q from its `found` nearest (indices into cloud, any order),
 /// oriented towards the viewpoint; zero when the neighbourhood is degenerate. With `pending`
 /// (not null), NaN where the fit is left pending in it (scatterFit).
@@ -168,8 +172,7 @@ Vec3 normalFrom(const Points& cloud, const Vec3& q, std::uint32_t* idx, std::siz
     case Fit::kPending: return Vec3::Constant(std::numeric_limits<float>::quiet_NaN());
     case Fit::kNormal: break;
   }
-  if (n.dot(viewpoint - q) < 0) n = -n;  // towards the sensor
-  return n;
+  return facingViewpoint(n, q, viewpoint);
 }
 
 /// The normals of `count` queries (query(i): the point; not finite, no normal), each from the
@@ -178,9 +181,14 @@ Vec3 normalFrom(const Points& cloud, const Vec3& q, std::uint32_t* idx, std::siz
 /// and each thread's buffers.
 constexpr std::size_t kLater = ~std::size_t{0};
 
-template <class Query, class Nearest, class Store>
+/// Where query i's fit may be left pending (pending(i)), or nowhere (null).
+PendingFit* pendingSlot(std::nullptr_t, std::size_t) { return nullptr; }
+template <class Pending>
+PendingFit* pendingSlot(const Pending& pending, std::size_t i) { return pending(i); }
+
+template <class Query, class Nearest, class Store, class Pending = std::nullptr_t>
 void planeFitNormals(std::size_t count, const Points& cloud, int k, const Vec3& viewpoint, Query query, Nearest nearest,
-                     Store store, std::vector<PendingFit>* pending = nullptr) {
+                     Store store, Pending pending = nullptr) {
   if (k < 3) throw Error(fmt::format("normal estimation needs k >= 3 neighbours, got {}", k));
   if (cloud.size() < 3) return;
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 256), [&](const auto& range) {
@@ -191,7 +199,7 @@ void planeFitNormals(std::size_t count, const Points& cloud, int k, const Vec3& 
       if (!q.allFinite()) continue;
       const std::size_t found = nearest(i, q, idx.data(), dist.data());
       if (found != kLater)
-        store(i, normalFrom(cloud, q, idx.data(), found, viewpoint, pending != nullptr ? &(*pending)[i] : nullptr));
+        store(i, normalFrom(cloud, q, idx.data(), found, viewpoint, pendingSlot(pending, i)));
     }
   });
 }
@@ -222,7 +230,8 @@ Points pixelNormals(const PixelNeighbours& pixels, const Points& cloud, std::spa
         later[i] = 1;
         return kLater;
       },
-      [&](std::size_t i, const Vec3& n) { normals[i] = n; }, pending);
+      [&](std::size_t i, const Vec3& n) { normals[i] = n; },
+      [&](std::size_t i) { return pending != nullptr ? &(*pending)[i] : nullptr; });
   deferred.clear();
   for (std::size_t i = 0; i < chosen.size(); ++i)
     if (later[i]) deferred.push_back(static_cast<std::uint32_t>(i));
@@ -232,18 +241,16 @@ Points pixelNormals(const PixelNeighbours& pixels, const Points& cloud, std::spa
 void finishNormals(const PointGrid& grid, const Points& cloud, std::span<const std::uint32_t> chosen,
                    std::span<const std::uint32_t> deferred, int k, const Vec3& viewpoint, Points& normals,
                    std::vector<PendingFit>* pending) {
-  std::vector<PendingFit> fits(pending != nullptr ? deferred.size() : 0);  // then moved to their places
   planeFitNormals(
       deferred.size(), cloud, k, viewpoint, [&](std::size_t d) -> const Vec3& { return cloud[chosen[deferred[d]]]; },
       [&](std::size_t, const Vec3& q, std::uint32_t* idx, float* dist) { return grid.knn(q, static_cast<std::size_t>(k), idx, dist); },
-      [&](std::size_t d, const Vec3& n) { normals[deferred[d]] = n; }, pending != nullptr ? &fits : nullptr);
-  if (pending != nullptr)
-    for (std::size_t d = 0; d < deferred.size(); ++d) (*pending)[deferred[d]] = fits[d];
+      [&](std::size_t d, const Vec3& n) { normals[deferred[d]] = n; },
+      [&](std::size_t d) { return pending != nullptr ? &(*pending)[deferred[d]] : nullptr; });
 }
 
 bool finishPending(const PendingFit& fit, const Vec3& q, const Vec3& viewpoint, Vec3& normal) {
   if (!iterativeNormal(fit.W, normal)) return false;
-  if (normal.dot(viewpoint - q) < 0) normal = -normal;  // towards the sensor, as normalFrom
+  normal = facingViewpoint(normal, q, viewpoint);
   return true;
 }
 
