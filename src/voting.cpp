@@ -259,7 +259,160 @@ void votesAbove(std::span<const std::uint16_t> votes, std::uint16_t above, std::
     if (votes[i] > above) out.push_back(i);
 }
 
+#if defined(__x86_64__)
+/// The accumulator (a multiple of 32 counters) packed to bytes in order, each saturated at 255,
+/// into `bytes`; returns the largest count.
+__attribute__((target("avx2"))) std::uint16_t packVotes(std::span<const std::uint16_t> votes, std::uint8_t* bytes) {
+  __m256i most = _mm256_setzero_si256();
+  for (std::size_t i = 0; i < votes.size(); i += 32) {
+    const __m256i a = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(votes.data() + i));
+    const __m256i b = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(votes.data() + i + 16));
+    most = _mm256_max_epu16(most, _mm256_max_epu16(a, b));
+    // packus interleaves the two inputs' 128-bit halves; the permute puts them back in order.
+    const __m256i packed = _mm256_permute4x64_epi64(_mm256_packus_epi16(a, b), 0xD8);
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(bytes + i), packed);
+  }
+  const __m128i half = _mm_max_epu16(_mm256_castsi256_si128(most), _mm256_extracti128_si256(most, 1));
+  // The largest lane: the smallest of the complements (phminposuw).
+  return static_cast<std::uint16_t>(0xFFFF - _mm_extract_epi16(_mm_minpos_epu16(_mm_xor_si128(half, _mm_set1_epi16(-1))), 0));
+}
+
+/// 32 bytes as bits: bit j for a byte equal to base + j (j < 8), none for any other. The byte
+/// less base, wrapped, is under 8 only for those eight values; min(., 8) puts any other at 8,
+/// which bit_of maps to none.
+BINPOSE_AVX2_INLINE __m256i valueBits(const std::uint8_t* at, __m256i bit_of, __m256i base, __m256i eight) {
+  const __m256i x = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(at));
+  return _mm256_shuffle_epi8(bit_of, _mm256_min_epu8(_mm256_sub_epi8(x, base), eight));
+}
+
+/// equal[j] = how many of the bytes (a multiple of 128) equal from + j, for j < 8: each byte
+/// turned into one bit (bit j for from + j, none for any other value), and the bits at each
+/// position counted down the bytes as eight bit planes (vertical counters, carry-save adders
+/// four bytes' bits at a time, as addBitsetsSliced). 1.7x as fast as comparing each value
+/// (0.44 against 0.75 us for 4096 bytes on this EPYC).
+__attribute__((target("avx2"))) void countEqual(std::span<const std::uint8_t> bytes, int from, std::uint64_t (&equal)[8]) {
+  const __m256i bit_of = _mm256_setr_epi8(1, 2, 4, 8, 16, 32, 64, -128, 0, 0, 0, 0, 0, 0, 0, 0, 1, 2, 4, 8, 16, 32, 64, -128,
+                                          0, 0, 0, 0, 0, 0, 0, 0);
+  const __m256i base = _mm256_set1_epi8(static_cast<char>(from));
+  const __m256i eight = _mm256_set1_epi8(8);
+  for (auto& e : equal) e = 0;
+  for (std::size_t start = 0; start < bytes.size();) {
+    // Eight planes count to 255: at most 252 steps of 32 bytes (63 of 128) between read-outs.
+    const std::size_t end = std::min(bytes.size(), start + 63 * 128);
+    __m256i plane[8];
+    for (auto& p : plane) p = _mm256_setzero_si256();
+    for (std::size_t i = start; i < end; i += 128) {
+      const std::uint8_t* at = bytes.data() + i;
+      __m256i twos_a, twos_b, fours;
+      carrySave(plane[0], twos_a, plane[0], valueBits(at, bit_of, base, eight), valueBits(at + 32, bit_of, base, eight));
+      carrySave(plane[0], twos_b, plane[0], valueBits(at + 64, bit_of, base, eight), valueBits(at + 96, bit_of, base, eight));
+      carrySave(plane[1], fours, plane[1], twos_a, twos_b);
+      addAt<8>(plane, fours, 2);
+    }
+    alignas(32) std::uint64_t word[8][4];
+    for (int p = 0; p < 8; ++p) _mm256_store_si256(reinterpret_cast<__m256i*>(word[p]), plane[p]);
+    for (int b = 0; b < 8; ++b) {
+      const std::uint64_t mask = 0x0101010101010101ull << b;  // bit b of every byte
+      for (int p = 0; p < 8; ++p)
+        equal[b] += static_cast<std::uint64_t>(std::popcount(word[p][0] & mask) + std::popcount(word[p][1] & mask) +
+                                               std::popcount(word[p][2] & mask) + std::popcount(word[p][3] & mask))
+                    << p;
+    }
+    start = end;
+  }
+}
+#endif
+
 }  // namespace
+
+namespace {
+
+/// histogram[v]: the votes equal to v, from 1 up to where the fourths of the non-zero votes lie
+/// (the votes above put together in the next bin, where no fourth reaches), counted from
+/// `bytes` (the votes as bytes, a multiple of 32, zeros after the last); false when top > 255.
+bool lowHistogram(std::span<const std::uint8_t> bytes, std::uint16_t top, std::vector<std::uint32_t>& histogram) {
+#if defined(__x86_64__)
+  if (top > 255) return false;
+  std::uint64_t equal[8];  // equal[j]: the votes equal to from + j
+  countEqual(bytes, 0, equal);
+  const std::uint64_t n = bytes.size() - equal[0];  // the non-zero votes
+  const std::uint64_t half = (n + 1) / 2;
+  const std::uint64_t last = n - half + half / 2;  // the upper fourth's last position (fourthsOfHistogram)
+  histogram.assign(1, 0);
+  std::uint64_t binned = 0;  // the non-zero votes binned so far
+  for (int from = 0;; from += 8) {
+    if (from > 0) countEqual(bytes, from, equal);
+    for (int j = from == 0 ? 1 : 0; j < 8; ++j) {
+      histogram.push_back(static_cast<std::uint32_t>(equal[j]));
+      binned += equal[j];
+      if (binned > last || from + j == top) {  // positions 0 to last binned
+        if (binned < n) histogram.push_back(static_cast<std::uint32_t>(n - binned));
+        return true;
+      }
+    }
+  }
+#else
+  (void)bytes, (void)top, (void)histogram;
+  return false;
+#endif
+}
+
+/// histogram[v]: the votes equal to v, for v from 1 to top (histogram[0] = 0).
+void fullHistogram(std::span<const std::uint16_t> votes, std::uint16_t top, std::vector<std::uint32_t>& histogram) {
+  // Eight histograms side by side, so that runs of equal votes do not wait on each other (four:
+  // BM_LocalVotes 65.3-69.0 ms; eight: 64.1-65.4).
+  const std::size_t bins = std::size_t{top} + 1;
+  histogram.assign(8 * bins, 0);
+  // Through plain pointers, one per histogram: indexing the vector by lane took 1.7x as long.
+  std::uint32_t* h[8];
+  for (std::size_t l = 0; l < 8; ++l) h[l] = histogram.data() + l * bins;
+  const std::uint16_t* const v = votes.data();
+  const std::size_t n = votes.size();
+  std::size_t id = 0;
+  for (; id + 8 <= n; id += 8) {
+    ++h[0][v[id]];
+    ++h[1][v[id + 1]];
+    ++h[2][v[id + 2]];
+    ++h[3][v[id + 3]];
+    ++h[4][v[id + 4]];
+    ++h[5][v[id + 5]];
+    ++h[6][v[id + 6]];
+    ++h[7][v[id + 7]];
+  }
+  for (; id < n; ++id) ++h[0][v[id]];
+  for (std::size_t b = 0; b < bins; ++b)
+    h[0][b] += h[1][b] + h[2][b] + h[3][b] + h[4][b] + h[5][b] + h[6][b] + h[7][b];
+  histogram.resize(bins);
+  histogram[0] = 0;
+}
+
+}  // namespace
+
+VoteCut upperOutlierCut(std::span<const std::uint16_t> votes, std::vector<std::uint8_t>& bytes,
+                        std::vector<std::uint32_t>& histogram) {
+  // Eq. 10-11 need only the fourths of the non-zero votes, which lie in the histogram's lower
+  // part. With AVX2, the votes as bytes (when the top is under 256) are counted from the bottom,
+  // eight values a pass, until the histogram holds the upper fourth's last position: on IPD
+  // obj 8's 4000 points 2.1 passes on average (1 to 6), each a few logic operations on 32
+  // bytes at a time, instead of a scalar increment per model point.
+  VoteCut cut;
+  bool counted = false;
+#if defined(__x86_64__)
+  if (votes.size() % 128 == 0 && detail::haveAvx2()) {
+    bytes.resize(votes.size());
+    cut.top = packVotes(votes, bytes.data());
+    counted = cut.top > 0 && lowHistogram(bytes, cut.top, histogram);
+  } else {
+    cut.top = largestVote(votes);
+  }
+#else
+  cut.top = largestVote(votes);
+#endif
+  if (cut.top == 0) return cut;
+  if (!counted) fullHistogram(votes, cut.top, histogram);
+  cut.limit = outlierLimit(histogram);
+  return cut;
+}
 
 void Voter::countDense() {
   // Bitsets rather than id lists for the lists of a 32nd of the model points and more: with n_M
@@ -362,35 +515,12 @@ void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t
 
 void Voter::select(std::uint32_t k, std::vector<Correspondence>& out) {
   // A_k is the model points with a vote (eq. 9-10): its histogram is the accumulator's without
-  // the zeros. Eight histograms side by side, so that runs of equal votes do not wait on each
-  // other (four: BM_LocalVotes 65.3-69.0 ms; eight: 64.1-65.4).
+  // the zeros.
   const std::span<const std::uint16_t> votes(votes_.data(), counters_);
-  const std::uint16_t top = largestVote(votes);
-  if (top == 0) return;
-  const std::size_t bins = std::size_t{top} + 1;
-  histogram_.assign(8 * bins, 0);
-  // Through plain pointers, one per histogram: indexing the vector by lane took 1.7x as long.
-  std::uint32_t* h[8];
-  for (std::size_t l = 0; l < 8; ++l) h[l] = histogram_.data() + l * bins;
-  const std::uint16_t* const v = votes.data();
-  const std::size_t n = votes.size();
-  std::size_t id = 0;
-  for (; id + 8 <= n; id += 8) {
-    ++h[0][v[id]];
-    ++h[1][v[id + 1]];
-    ++h[2][v[id + 2]];
-    ++h[3][v[id + 3]];
-    ++h[4][v[id + 4]];
-    ++h[5][v[id + 5]];
-    ++h[6][v[id + 6]];
-    ++h[7][v[id + 7]];
-  }
-  for (; id < n; ++id) ++h[0][v[id]];
-  for (std::size_t b = 0; b < bins; ++b)
-    h[0][b] += h[1][b] + h[2][b] + h[3][b] + h[4][b] + h[5][b] + h[6][b] + h[7][b];
-  histogram_[0] = 0;
-  const double limit = outlierLimit(std::span<const std::uint32_t>(histogram_.data(), bins));
-  if (!(top > limit)) return;  // eq. 11: no upper outlier, no candidate
+  const VoteCut cut = upperOutlierCut(votes_, bytes_, histogram_);  // with the padding's zeros
+  const std::uint16_t top = cut.top;
+  const double limit = cut.limit;
+  if (!(top > limit)) return;  // eq. 11: no upper outlier, no candidate (nor any vote)
   const auto above = static_cast<std::uint16_t>(limit);  // votes are whole: v > limit <=> v > floor(limit)
   votesAbove(votes, above, outliers_);
   const auto value = [this](std::size_t m) { return std::uint32_t{votes_[m]}; };

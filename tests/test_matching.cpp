@@ -62,6 +62,52 @@ TEST(FourthSpread, SelectsOnlyExtremeMaxima) {
   EXPECT_TRUE(selectCandidates(std::vector<std::uint32_t>{}).empty());
 }
 
+TEST(FourthSpread, CutOfAnAccumulatorIsTheFullHistograms) {
+  // upperOutlierCut counts the histogram only as far as the fourths need (with AVX2, on the votes
+  // as bytes, eight values a pass): its top and limit must be those of every non-zero count's.
+  // Accumulators of 128 multiples (the fast path; 40064 read out in several runs) and not, with
+  // zeros, gaps between the values (where stopping a bin early would show), ties, tops at 255
+  // and 256, and every vote equal.
+  Rng rng(41);
+  std::vector<std::uint8_t> bytes;
+  std::vector<std::uint32_t> histogram;
+  int checked = 0;
+  for (const std::size_t size : {32u, 128u, 4000u, 4096u, 4095u, 40064u})
+    for (const int top : {1, 2, 7, 8, 9, 30, 120, 255, 256, 3000})
+      for (const double zeros : {0.0, 0.3, 0.95})
+        for (const int step : {1, 3, 17}) {  // votes only on multiples of step (gaps between)
+          std::vector<std::uint16_t> votes(size);
+          for (auto& v : votes) {
+            // Mostly low counts, a few high: the scans' accumulators have this shape.
+            const double u = rng.uniform();
+            const int value = static_cast<int>(top * u * u * u);
+            v = static_cast<std::uint16_t>(rng.uniform() < zeros ? 0 : std::max(1, value - value % step));
+          }
+          votes[rng.below(size)] = static_cast<std::uint16_t>(top);
+          std::vector<std::uint32_t> full(top + 1, 0);
+          for (const auto v : votes) full[v] += v > 0;
+          const VoteCut cut = upperOutlierCut(votes, bytes, histogram);
+          ASSERT_EQ(cut.top, top);
+          const Fourths f = fourthsOfHistogram(full);
+          EXPECT_EQ(cut.limit, f.upper + 3.0 * f.spread()) << size << " " << top << " " << zeros << " " << step;
+          ++checked;
+        }
+  EXPECT_EQ(checked, 540);
+  std::vector<std::uint16_t> high(128);  // most votes at 255 and 256: a byte cannot hold them
+  for (std::size_t i = 0; i < high.size(); ++i) high[i] = static_cast<std::uint16_t>(i % 3 == 0 ? 255 : 256);
+  high[5] = 1;
+  std::vector<std::uint32_t> full(257, 0);
+  for (const auto v : high) ++full[v];
+  const Fourths f = fourthsOfHistogram(full);
+  EXPECT_EQ(upperOutlierCut(high, bytes, histogram).limit, f.upper + 3.0 * f.spread());
+  std::vector<std::uint16_t> none(64, 0);
+  EXPECT_EQ(upperOutlierCut(none, bytes, histogram).top, 0) << "no vote";
+  std::vector<std::uint16_t> equal(64, 5);
+  const VoteCut flat = upperOutlierCut(equal, bytes, histogram);
+  EXPECT_EQ(flat.top, 5);
+  EXPECT_EQ(flat.limit, 5.0) << "every vote equal: no spread, no outlier";
+}
+
 // ---- maximum clique ---------------------------------------------------------------------------
 
 namespace {
@@ -409,30 +455,43 @@ TEST(Voting, BitsetCountingGivesTheSameCandidates) {
 TEST(Voting, VoterSelectsTheUpperOutliersOfItsCounts) {
   // Each point's accumulator counted here, one feature at a time from the table's lists (eq. 9),
   // and its candidates chosen by selectCandidates (eq. 10-12): the Voter's (equal keys grouped, bitsets,
-  // vector scans of the accumulator) must be the same.
-  const WholePart part = wholePart(31);
-  const auto& [points, normals, group] = part;
-  const ModelDatabase& db = lDatabase();
-  for (const int keep : {1, 12}) {
-    Voter voter(db, keep);
-    int with_candidates = 0;
-    for (std::uint32_t k = 0; k < points.size(); k += 5) {
-      const std::vector<std::uint32_t> counts = countedVotes(db, part, k);
-      std::vector<std::size_t> expected = selectCandidates(counts, keep);
-      if (keep > 1) {  // selectCandidates gives them best first; with keep 1, the ties in index order
-        ASSERT_TRUE(std::is_sorted(expected.begin(), expected.end(),
-                                   [&](std::size_t a, std::size_t b) { return counts[a] > counts[b]; }));
+  // vector scans of the accumulator) must be the same. Every point voting with the whole part
+  // gives tops over 255; with every 9th point as partner, under 100, as the scans' local votes
+  // (the accumulator as bytes, its histogram counted only as far as the fourths need).
+  for (const std::uint32_t stride : {1u, 9u}) {
+    WholePart part = wholePart(31);
+    std::erase_if(part.group, [&](std::uint32_t i) { return i % stride != 0; });
+    const auto& [points, normals, group] = part;
+    const ModelDatabase& db = lDatabase();
+    for (const int keep : {1, 12}) {
+      SCOPED_TRACE(testing::Message() << "partners every " << stride << ", keep " << keep);
+      Voter voter(db, keep);
+      int with_candidates = 0;
+      for (std::uint32_t k = 0; k < points.size(); k += 5) {
+        const std::vector<std::uint32_t> counts = countedVotes(db, part, k);
+        std::vector<std::uint32_t> voted, values;  // A_k: the model points with a vote, and their votes
+        for (std::uint32_t m = 0; m < counts.size(); ++m)
+          if (counts[m] > 0) {
+            voted.push_back(m);
+            values.push_back(counts[m]);
+          }
+        std::vector<std::size_t> expected = selectCandidates(values, keep);
+        for (std::size_t& e : expected) e = voted[e];
+        if (keep > 1) {  // selectCandidates gives them best first; with keep 1, the ties in index order
+          ASSERT_TRUE(std::is_sorted(expected.begin(), expected.end(),
+                                     [&](std::size_t a, std::size_t b) { return counts[a] > counts[b]; }));
+        }
+        std::vector<Correspondence> got;
+        voter.votePoint(points, normals, k, group, got);
+        ASSERT_EQ(got.size(), expected.size()) << k;
+        for (std::size_t c = 0; c < got.size(); ++c) {
+          EXPECT_EQ(got[c].scene, k);
+          EXPECT_EQ(got[c].model, expected[c]) << k;
+        }
+        with_candidates += !got.empty();
       }
-      std::vector<Correspondence> got;
-      voter.votePoint(points, normals, k, group, got);
-      ASSERT_EQ(got.size(), expected.size()) << k;
-      for (std::size_t c = 0; c < got.size(); ++c) {
-        EXPECT_EQ(got[c].scene, k);
-        EXPECT_EQ(got[c].model, expected[c]) << k;
-      }
-      with_candidates += !got.empty();
+      EXPECT_GT(with_candidates, 20) << keep;
     }
-    EXPECT_GT(with_candidates, 20) << keep;
   }
 }
 

@@ -37,6 +37,18 @@ Fourths fourthsOfHistogram(std::span<const std::uint32_t> histogram);
 void upperOutliers(std::span<const std::uint32_t> values, std::vector<std::uint32_t>& histogram,
                    std::vector<std::size_t>& out);
 
+/// Eq. 10-11 on an accumulator: its largest count, and the value above which a count is an upper
+/// outlier of the non-zero counts (x_u + 3 xi_s; unset when no count is above zero).
+struct VoteCut {
+  std::uint16_t top = 0;
+  double limit = 0;
+};
+/// VoteCut of 16-bit counts (the zeros are not part of the data set). `bytes` and `histogram`
+/// are scratch, kept by the caller so nothing is allocated per call. The same for any count;
+/// a multiple of 128 counts is read faster where the CPU has AVX2.
+VoteCut upperOutlierCut(std::span<const std::uint16_t> votes, std::vector<std::uint8_t>& bytes,
+                        std::vector<std::uint32_t>& histogram);
+
 /// Selection of eq. 11-12 on accumulator values: the indices whose value is an upper outlier
 /// (> x_u + 3 xi_s) and equals the largest value; empty when there is no outlier.
 /// With `keep` > 1 (beyond the thesis): the `keep` highest upper outliers instead of only the
@@ -108,6 +120,7 @@ class Voter {
   std::vector<std::uint16_t> votes_;      ///< A_k, one counter per model point (or orbit), zeros after to a 256 multiple
   std::vector<const std::uint64_t*> dense_lists_;  ///< one point's long lists' bitsets, each as often as it adds
   bool bitsets_;                          ///< long lists counted by bitset (where the CPU has AVX2)
+  std::vector<std::uint8_t> bytes_;       ///< the accumulator as bytes (upperOutlierCut's scratch)
   std::vector<std::uint32_t> histogram_;  ///< the accumulator's histogram (eight side by side)
   std::vector<std::size_t> outliers_;     ///< model points whose votes are upper outliers
   std::vector<std::size_t> by_votes_;     ///< the same, most votes first (select's counting sort)
