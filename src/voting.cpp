@@ -323,13 +323,9 @@ __attribute__((target("avx2"))) void countEqual(std::span<const std::uint8_t> by
 }
 #endif
 
-}  // namespace
-
-namespace {
-
 /// histogram[v]: the votes equal to v, from 1 up to where the fourths of the non-zero votes lie
 /// (the votes above put together in the next bin, where no fourth reaches), counted from
-/// `bytes` (the votes as bytes, a multiple of 32, zeros after the last); false when top > 255.
+/// `bytes` (the votes as bytes, a multiple of 128 of them); false when top > 255.
 bool lowHistogram(std::span<const std::uint8_t> bytes, std::uint16_t top, std::vector<std::uint32_t>& histogram) {
 #if defined(__x86_64__)
   if (top > 255) return false;
