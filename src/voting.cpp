@@ -411,10 +411,13 @@ VoteCut upperOutlierCut(std::span<const std::uint16_t> votes, std::vector<std::u
 }
 
 void Voter::countDense() {
-  // Bitsets rather than id lists for the lists of a 32nd of the model points and more: with n_M
+  // Bitsets rather than id lists for the lists of a 48th of the model points and more: with n_M
   // = 4000, a list costs about 64 logic operations on 256-bit words and the points' counts
   // about 1.5 operations a point, against about 1 ns a point listed (IPD obj 8's points each
-  // had 41 such lists, 31000 points in all).
+  // had 41 such lists, 31000 points in all, from a 32nd). A 48th rather than a 32nd (round 32,
+  // ipd8-16, two threads, six alternations of 61 runs): votes 18.7-21.8 ms against 20.6-22.0,
+  // ipd0-16 unchanged; IPD obj 8's lists of 83 to 124 points held as bitsets too, 4 MB more.
+  // A 16th: one core's votes 38.6-39.1 ms against 36.2-37.7; a 64th as a 48th.
   if (!dense_lists_.empty()) addBitsets(votes_.data(), dense_lists_, votes_.size() / 256);
   dense_lists_.clear();
 }

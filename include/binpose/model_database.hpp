@@ -67,9 +67,9 @@ class ModelDatabase {
     if (key >= dense_slot_.size() || dense_slot_[key] == kNoSlot) return {};
     return {dense_bits_.data() + std::size_t{dense_slot_[key]} * dense_words_, dense_words_};
   }
-  /// Lists of at least this many points are also kept as bitsets (a 32nd of the points: longer
-  /// ones are counted faster by bitset than point by point; see Voter).
-  [[nodiscard]] std::size_t denseListSize() const { return std::max<std::size_t>(1, model_.points.size() / 32); }
+  /// Lists of at least this many points are also kept as bitsets (a 48th of the points: longer
+  /// ones are counted faster by bitset than point by point; see Voter::countDense).
+  [[nodiscard]] std::size_t denseListSize() const { return std::max<std::size_t>(1, model_.points.size() / 48); }
   [[nodiscard]] const KeySpace& keySpace() const { return keys_; }
   [[nodiscard]] const OrientedModel& model() const { return model_; }
   [[nodiscard]] std::uint64_t entryCount() const { return entries_.size(); }
