@@ -293,19 +293,20 @@ Graph cyclicConsistencyGraph(std::span<const Correspondence> cps, const Points& 
         turnsInBand(kept.bx.data(), kept.by.data(), kept.bz.data(), kept.lo.data(), kept.hi.data(), (kept.count + 7) & ~7,
                     q[i].data(), ck.data(), sk.data(), k0, std::min(sym.order, k0 + 32), dot.data(), cross.data(), z.data(),
                     turns.data());
+        // At a turn of the right distance, the three angles of the pair (4.1) as in the scene, within
+        // tol, at every such turn (1.6 a pair on IPD obj 8) without a branch: 78% of the kept pairs
+        // have a turn and 44% of those link, which no branch predicts.
         for (int p = 0; p < kept.count; ++p) {
           const int j = kept.j[p];
-          if (turns[p] == 0 || (row[j / 64] >> (j % 64) & 1)) continue;  // most pairs; those linked at turns before
-          // At a turn of the right distance, the three angles of the pair (4.1) as in the scene, within tol.
           const Turned nn = turned(u[i], u[j]), na = turned(u[i], q[j]), bn = turned(a, u[j]);
+          bool linked = false;
           for (std::uint32_t bits = turns[p]; bits; bits &= bits - 1) {
             const int k = k0 + std::countr_zero(bits);
-            if (std::abs(nn.at(ck[k], sk[k]) - nn_scene[j]) > tol) continue;
-            if (std::abs(na.at(ck[k], sk[k]) - ni_d[j]) > slack[j]) continue;  // n_i . (R_k b - a)
-            if (std::abs(bn.at(ck[k], sk[k]) - nj_d[j]) > slack[j]) continue;  // R_k n_j . (a - R_k b)
-            row[j / 64] |= 1ull << (j % 64);
-            break;
+            linked |= !(std::abs(nn.at(ck[k], sk[k]) - nn_scene[j]) > tol) &
+                      !(std::abs(na.at(ck[k], sk[k]) - ni_d[j]) > slack[j]) &  // n_i . (R_k b - a)
+                      !(std::abs(bn.at(ck[k], sk[k]) - nj_d[j]) > slack[j]);   // R_k n_j . (a - R_k b)
           }
+          row[j / 64] |= std::uint64_t{linked} << (j % 64);
         }
       }
     }
