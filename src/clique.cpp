@@ -44,10 +44,17 @@ class Search {
     std::vector<int> order, colours;
   };
 
-  /// The buffers of depth d (a deque: the levels above keep their places as it grows).
+  /// The buffers of depth d (a deque: the levels above keep their places as it grows). Each
+  /// thread keeps its levels from one search to the next: a search has no parallel step in
+  /// which the thread could start another (ipd8-16 ran 2000 searches a run, each allocating
+  /// its levels anew).
   Level& level(std::size_t d) {
     while (levels_.size() <= d) levels_.emplace_back();
     return levels_[d];
+  }
+  static std::deque<Level>& threadLevels() {
+    static thread_local std::deque<Level> levels;
+    return levels;
   }
 
   /// Greedy sequential colouring of L.P: vertices in colour order and their colour numbers; a
@@ -102,15 +109,16 @@ class Search {
   std::size_t floor_;
   bool stopped_ = false;
   std::vector<int> best_;
-  std::deque<Level> levels_;
+  std::deque<Level>& levels_ = threadLevels();
 };
 
 /// A clique grown greedily from each of the few highest-degree vertices (adding, in degree
-/// order, every vertex adjacent to all chosen so far); the largest of them. A lower bound.
-std::vector<int> greedyClique(const Graph& g, const std::vector<int>& by_degree) {
+/// order, every vertex adjacent to all chosen so far); the largest of them, into `best`. A
+/// lower bound. `clique` and `P`: buffers.
+void greedyClique(const Graph& g, const std::vector<int>& by_degree, std::vector<int>& best, std::vector<int>& clique, Bits& P) {
   constexpr int kStarts = 4;
-  std::vector<int> best, clique;
-  Bits P(static_cast<std::size_t>(g.words()));
+  best.clear();
+  P.resize(static_cast<std::size_t>(g.words()));
   for (int s = 0; s < std::min<int>(kStarts, static_cast<int>(by_degree.size())); ++s) {
     const int start = by_degree[s];
     clique.assign(1, start);
@@ -123,15 +131,15 @@ std::vector<int> greedyClique(const Graph& g, const std::vector<int>& by_degree)
     }
     if (clique.size() > best.size()) best = clique;
   }
-  return best;
 }
 
-/// Marks the vertices left after repeatedly removing those with fewer than `k` remaining
-/// neighbours (the k-core): every clique of more than k vertices lies in it.
-std::vector<char> coreOf(const Graph& g, std::vector<int> degree, int k) {
+/// Marks in `in_core` the vertices left after repeatedly removing those with fewer than `k`
+/// remaining neighbours (the k-core): every clique of more than k vertices lies in it.
+/// `degree` is used up; `queue`: a buffer.
+void coreOf(const Graph& g, std::vector<int>& degree, int k, std::vector<char>& in_core, std::vector<int>& queue) {
   const int n = g.size();
-  std::vector<char> in_core(static_cast<std::size_t>(n), 1);
-  std::vector<int> queue;
+  in_core.assign(static_cast<std::size_t>(n), 1);
+  queue.clear();
   for (int v = 0; v < n; ++v)
     if (degree[v] < k) { in_core[v] = 0; queue.push_back(v); }
   while (!queue.empty()) {
@@ -144,7 +152,6 @@ std::vector<char> coreOf(const Graph& g, std::vector<int> degree, int k) {
         if (in_core[u] && --degree[u] < k) { in_core[u] = 0; queue.push_back(u); }
       }
   }
-  return in_core;
 }
 
 /// Squared model distances d_m^2 that eq. 15-16 accept against a scene distance d_s: those with
@@ -242,11 +249,12 @@ __attribute__((target("avx2"))) void transpose64Avx2(std::array<std::uint64_t, 6
 /// P g P^T for the permutation P that picks them. X = P g picks rows; X^T = g P^T (g is
 /// symmetric) is one bit transpose, 64 x 64 blocks at a time; P X^T picks its rows again. A
 /// scatter of each edge's bit to its new place cost as much as building the graph (ipd0-32).
-Graph relabelled(const Graph& g, const std::vector<int>& order) {
+/// Into `sorted`, with `xt` a buffer.
+void relabelled(const Graph& g, const std::vector<int>& order, Graph& sorted, std::vector<std::uint64_t>& xt) {
   const int m = static_cast<int>(order.size());
-  Graph sorted(m);
+  sorted.reset(m);
   const int xw = g.words(), yw = sorted.words();  // words of a row of X (g's columns), of X^T (m columns)
-  std::vector<std::uint64_t> xt(static_cast<std::size_t>(xw) * 64 * yw, 0);  // X^T, g's columns rounded up to 64
+  xt.assign(static_cast<std::size_t>(xw) * 64 * yw, 0);  // X^T, g's columns rounded up to 64
   std::array<std::uint64_t, 64> block;
   for (int I = 0; I < yw; ++I)    // X's rows 64 I ..
     for (int J = 0; J < xw; ++J) {  // .. and columns 64 J ..
@@ -258,7 +266,22 @@ Graph relabelled(const Graph& g, const std::vector<int>& order) {
     }
   for (int a = 0; a < m; ++a)
     std::copy_n(xt.begin() + static_cast<std::ptrdiff_t>(order[a]) * yw, yw, sorted.mutableRow(a));
-  return sorted;
+}
+
+/// maximumClique's buffers, kept by each thread from one call to the next: a call has no
+/// parallel step, so a thread never runs two at once (ipd8-16 made some 350 calls a run, each
+/// allocating about fifteen buffers, and the allocator showed in the cliques' time).
+struct Workspace {
+  std::vector<int> degree, start, by_degree, greedy, clique, queue, order;
+  std::vector<char> in_core;
+  Bits P;
+  std::vector<std::uint64_t> xt;
+  Graph sorted{0};
+};
+
+Workspace& workspace() {
+  static thread_local Workspace w;
+  return w;
 }
 
 }  // namespace
@@ -305,31 +328,37 @@ void Graph::mirrorUpper() {
 CliqueResult maximumClique(const Graph& g, std::uint64_t work_limit) {
   if (g.size() == 0) return {};
   const int n = g.size();
-  std::vector<int> degree(static_cast<std::size_t>(n));
+  Workspace& w = workspace();
+  std::vector<int>& degree = w.degree;
+  degree.resize(static_cast<std::size_t>(n));
   for (int v = 0; v < n; ++v) degree[v] = g.degree(v);
   // The vertices by degree, highest first, equal degrees by index: a counting sort, degrees
   // lying in [0, n] (n with a self-loop; std::stable_sort was 1.3% of ipd0-32's samples).
-  std::vector<int> start(static_cast<std::size_t>(n) + 1, 0);  // counts, then where each degree begins
+  std::vector<int>& start = w.start;  // counts, then where each degree begins
+  start.assign(static_cast<std::size_t>(n) + 1, 0);
   for (int v = 0; v < n; ++v) ++start[degree[v]];
   for (int d = n, at = 0; d >= 0; --d) {
     const int count = start[d];
     start[d] = at;
     at += count;
   }
-  std::vector<int> by_degree(static_cast<std::size_t>(n));
+  std::vector<int>& by_degree = w.by_degree;
+  by_degree.resize(static_cast<std::size_t>(n));
   for (int v = 0; v < n; ++v) by_degree[start[degree[v]]++] = v;
-  const std::vector<int> greedy = greedyClique(g, by_degree);
+  greedyClique(g, by_degree, w.greedy, w.clique, w.P);
+  const std::vector<int>& greedy = w.greedy;
   // Only vertices of at least |greedy| neighbours among themselves can lie in a larger clique;
   // they keep the degree order, highest first: tighter colour bounds early (MCQ's initial order).
-  const std::vector<char> in_core = coreOf(g, degree, static_cast<int>(greedy.size()));
-  std::vector<int> order;
+  coreOf(g, degree, static_cast<int>(greedy.size()), w.in_core, w.queue);
+  std::vector<int>& order = w.order;
+  order.clear();
   for (const int v : by_degree)
-    if (in_core[v]) order.push_back(v);
+    if (w.in_core[v]) order.push_back(v);
   CliqueResult r;
   r.vertices = greedy;
   if (order.size() > greedy.size()) {
-    const Graph sorted = relabelled(g, order);
-    CliqueResult found = Search(sorted, work_limit, greedy.size()).run();
+    relabelled(g, order, w.sorted, w.xt);
+    CliqueResult found = Search(w.sorted, work_limit, greedy.size()).run();
     r.exact = found.exact;
     r.nodes = found.nodes;
     if (found.vertices.size() > greedy.size()) {
@@ -361,7 +390,13 @@ Graph consistencyGraph(std::span<const Correspondence> cps, const Points& scene,
   const std::array<const float*, 3> coords{c[0].data(), c[1].data(), c[2].data()};
   const int runs = static_cast<int>(run_start.size()) - 1;
   tbb::parallel_for(tbb::blocked_range<int>(0, runs, 4), [&](const tbb::blocked_range<int>& range) {  // runs apart
-    std::vector<float> low2(cps.size()), high2(cps.size());
+    // Each thread's bands, kept from one task to the next (every value read is written first;
+    // a task has no parallel step, so a thread runs one at a time).
+    static thread_local std::vector<float> low2, high2;
+    if (low2.size() < cps.size()) {
+      low2.resize(cps.size());
+      high2.resize(cps.size());
+    }
     for (int r = range.begin(); r < range.end(); ++r) {
       const int first_row = run_start[r];
       const Vec3& s = scene[cps[first_row].scene];

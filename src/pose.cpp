@@ -10,14 +10,20 @@ PoseFit solvePose(const Points& model, const Points& scene) {
   PoseFit fit;
   const auto n = static_cast<Eigen::Index>(model.size());
   if (n < 3 || model.size() != scene.size()) return fit;
-  Eigen::Matrix3Xd M(3, n), S(3, n);
+  // Each thread's matrices, kept from one call to the next (a clique fit of a part of n-fold
+  // symmetry solves eight poses; each allocated four matrices). No parallel step inside.
+  static thread_local Eigen::Matrix3Xd M, S, Mc, Sc;
+  M.resize(3, n);
+  S.resize(3, n);
   for (Eigen::Index i = 0; i < n; ++i) {
     M.col(i) = model[static_cast<std::size_t>(i)].cast<double>();
     S.col(i) = scene[static_cast<std::size_t>(i)].cast<double>();
   }
   // Cross-covariance of the centred sets (eq. 19-26); its SVD gives R = U diag(1, 1, d) V^T.
   const Eigen::Vector3d cm = M.rowwise().mean(), cs = S.rowwise().mean();
-  const Eigen::Matrix3d D = (S.colwise() - cs) * (M.colwise() - cm).transpose();
+  Sc = S.colwise() - cs;  // the product's operands as it evaluated them itself
+  Mc = M.colwise() - cm;
+  const Eigen::Matrix3d D = Sc * Mc.transpose();
   Eigen::JacobiSVD<Eigen::Matrix3d> svd(D, Eigen::ComputeFullU | Eigen::ComputeFullV);
   const Eigen::Vector3d sv = svd.singularValues();
   if (!(sv[1] > 1e-9 * sv[0])) return fit;  // collinear: rotation about the line is undetermined

@@ -16,6 +16,9 @@
 
 #include <memory>
 #include <numeric>
+#include <thread>
+
+#include <tbb/task_arena.h>
 
 using namespace binpose;
 
@@ -309,7 +312,78 @@ TEST(Clique, WorkBoundStopsEarly) {
   EXPECT_TRUE(maximumClique(Graph(0)).vertices.empty());
 }
 
+namespace {
+/// `run` on a thread of its own in an arena of one thread: its buffers kept per thread (the
+/// clique search's, the pose's) start empty there.
+template <class Run>
+auto onFreshThread(Run run) {
+  decltype(run()) out;
+  std::thread([&] { tbb::task_arena(1).execute([&] { out = run(); }); }).join();
+  return out;
+}
+}  // namespace
+
+TEST(Clique, BuffersKeptFromCallToCallGiveAFreshThreadsAnswer) {
+  // Graphs of one to four words a row, one after the other on one thread, larger and smaller
+  // than the one before: each answer is the one a thread with no buffers yet gives, and holds
+  // its planted clique's size at least.
+  Rng rng(13);
+  tbb::task_arena one(1);
+  for (const int n : {150, 12, 90, 220, 7, 64, 65, 130, 3}) {
+    Graph g = randomGraph(n, 0.25, rng);
+    std::vector<int> planted;
+    for (int v = 1; v < n && planted.size() < 9; v += 3) planted.push_back(v);
+    for (std::size_t i = 0; i < planted.size(); ++i)
+      for (std::size_t j = i + 1; j < planted.size(); ++j) g.addEdge(planted[i], planted[j]);
+    CliqueResult kept;
+    one.execute([&] { kept = maximumClique(g); });
+    const CliqueResult fresh = onFreshThread([&] { return maximumClique(g); });
+    EXPECT_EQ(kept.vertices, fresh.vertices) << n << " vertices";
+    EXPECT_EQ(kept.nodes, fresh.nodes) << n << " vertices";
+    EXPECT_GE(kept.vertices.size(), planted.size()) << n << " vertices";
+    for (std::size_t i = 0; i < kept.vertices.size(); ++i)
+      for (std::size_t j = i + 1; j < kept.vertices.size(); ++j) ASSERT_TRUE(g.adjacent(kept.vertices[i], kept.vertices[j]));
+  }
+}
+
+TEST(Clique, ResetLeavesNoEdgeAtAnySize) {
+  Rng rng(14);
+  Graph g = randomGraph(130, 0.5, rng);
+  for (const int n : {70, 200, 1}) {
+    g.reset(n);
+    EXPECT_EQ(g.size(), n);
+    EXPECT_EQ(g.words(), (n + 63) / 64);
+    for (int v = 0; v < n; ++v) EXPECT_EQ(g.degree(v), 0) << "vertex " << v << " of " << n;
+    if (n > 1) {
+      g.addEdge(0, n - 1);
+      EXPECT_TRUE(g.adjacent(n - 1, 0));
+    }
+  }
+}
+
 // ---- pose -------------------------------------------------------------------------------------
+
+TEST(Pose, BuffersKeptFromCallToCallGiveAFreshThreadsAnswer) {
+  // Sets of 40, 3, 25 and 4 pairs in turn on one thread: the same fits, bit for bit, as on a
+  // thread that never solved one.
+  Rng rng(15);
+  for (const int m : {40, 3, 25, 4}) {
+    Pose truth = Pose::Identity();
+    truth.linear() = Eigen::AngleAxisf(0.3f * float(m), Vec3(1, -2, 0.5f).normalized()).toRotationMatrix();
+    truth.translation() = Vec3(10, 20, 300);
+    Points model, scene;
+    for (int i = 0; i < m; ++i) {
+      model.emplace_back(float(rng.uniform() * 40), float(rng.uniform() * 30), float(rng.uniform() * 20));
+      scene.push_back(truth * model.back() + Vec3(float(rng.uniform()), float(rng.uniform()), float(rng.uniform())) * 0.2f);
+    }
+    const PoseFit kept = solvePose(model, scene);
+    const PoseFit fresh = onFreshThread([&] { return solvePose(model, scene); });
+    ASSERT_TRUE(kept.ok);
+    EXPECT_EQ(kept.pose.matrix(), fresh.pose.matrix()) << m << " pairs";
+    EXPECT_EQ(kept.rms, fresh.rms) << m << " pairs";
+    EXPECT_LT((kept.pose.translation() - truth.translation()).norm(), 1.0f) << m << " pairs";
+  }
+}
 
 TEST(Pose, RecoversRandomRigidTransformsUnderNoise) {
   Rng rng(9);

@@ -14,6 +14,12 @@ namespace binpose {
 class Graph {
  public:
   explicit Graph(int n) : n_(n), words_((n + 63) / 64), bits_(static_cast<std::size_t>(n) * words_, 0) {}
+  /// The graph of n vertices and no edge (its memory kept).
+  void reset(int n) {
+    n_ = n;
+    words_ = (n + 63) / 64;
+    bits_.assign(static_cast<std::size_t>(n) * words_, 0);
+  }
   void addEdge(int a, int b) {
     if (a == b) return;
     bits_[static_cast<std::size_t>(a) * words_ + b / 64] |= 1ull << (b % 64);
