@@ -146,6 +146,22 @@ void keepScreened(const float* __restrict c, int n, int begin, int end, const fl
   kept.count = m;
 }
 
+/// A row's buffers for n candidates, kept by each thread from graph to graph (every value read
+/// is written first).
+struct RowScratch {
+  std::vector<float> dot, cross, z;
+  std::vector<std::uint32_t> turns;
+  std::vector<float> t_lo, t_hi, nn_scene, ni_d, nj_d, slack;
+  Kept kept{0};
+  void fit(std::size_t n) {
+    if (t_lo.size() >= n) return;
+    for (auto* v : {&dot, &cross, &z}) v->resize(n + 8);
+    turns.resize(n + 8);
+    for (auto* v : {&t_lo, &t_hi, &nn_scene, &ni_d, &nj_d, &slack}) v->resize(n);
+    kept = Kept(n);
+  }
+};
+
 /// The turns k in [k0, k1), k1 - k0 <= 32, at which row i's model pair has the scene pair's
 /// distance: bit k - k0 of turns[p] set when a . R_k b = ck[k] (a.b across the axis) - sk[k]
 /// (a x b)_z + a_z b_z lies in [lo[p], hi[p]], for the m kept partners p (b their q, m padded
@@ -273,11 +289,9 @@ Graph cyclicConsistencyGraph(std::span<const Correspondence> cps, const Points& 
   // screened, then the turns of the right distance found, both on SIMD lanes; the three angles
   // are tested only at those turns (1.8 a pair on average of IPD obj 8's 17, where any).
   tbb::parallel_for(tbb::blocked_range<int>(0, n, 16), [&](const tbb::blocked_range<int>& rows) {
-    std::vector<float> dot(cps.size() + 8), cross(cps.size() + 8), z(cps.size() + 8);
-    std::vector<std::uint32_t> turns(cps.size() + 8);
-    std::vector<float> t_lo(cps.size()), t_hi(cps.size()), nn_scene(cps.size()), ni_d(cps.size()), nj_d(cps.size()),
-        slack(cps.size());
-    Kept kept(cps.size());
+    static thread_local RowScratch scratch;
+    scratch.fit(cps.size());
+    auto& [dot, cross, z, turns, t_lo, t_hi, nn_scene, ni_d, nj_d, slack, kept] = scratch;
     for (int i = rows.begin(); i < rows.end(); ++i) {
       RowTerms terms{};
       for (int f = 0; f < kColumns; ++f) terms.col[f] = c.col[static_cast<std::size_t>(f) * n + i];
@@ -319,11 +333,18 @@ PoseFit solveCyclicPose(const CyclicSymmetry& sym, const Points& model, const Po
   const int m = static_cast<int>(model.size());
   if (m < 3 || scene.size() != model.size()) return {};
   const int n = sym.order;
-  // Every image of every clique point.
-  std::vector<Points> images(m, Points(n));
+  // Every image of every clique point, in one block (image k of point v at v * n + k). The
+  // buffers are each thread's, kept from one call to the next (there is no parallel step here,
+  // so a thread runs one call at a time): ipd8-16's clique fits allocated them 2600 times a run.
+  static thread_local Points image_block, chosen, anchor_model(3), anchor_scene(3);
+  static thread_local std::vector<float> misfit;
+  image_block.resize(static_cast<std::size_t>(m) * static_cast<std::size_t>(n));
+  misfit.resize(static_cast<std::size_t>(n));
+  chosen.resize(static_cast<std::size_t>(m));
+  const auto images = [&](int v) { return image_block.data() + static_cast<std::ptrdiff_t>(v) * n; };
   for (int k = 0; k < n; ++k) {
     const Pose t = sym.turn(k);
-    for (int v = 0; v < m; ++v) images[v][k] = t * model[v];
+    for (int v = 0; v < m; ++v) images(v)[k] = t * model[v];
   }
   // Anchors: point 0 at its own image, the scene point farthest from it, and the one farthest
   // from the line through both.
@@ -337,12 +358,11 @@ PoseFit solveCyclicPose(const CyclicSymmetry& sym, const Points& model, const Po
   for (int v = 1; v < m; ++v)
     if (v != a1 && (a2 < 0 || off_line(v) > off_line(a2))) a2 = v;
   // A point's misfit at each image against the anchors placed so far.
-  std::vector<float> misfit(n);
   auto fill = [&](int v, std::span<const std::pair<int, int>> placed) {
     for (int k = 0; k < n; ++k) {
       float e = 0;
       for (const auto& [u, ku] : placed) {
-        const float r = (scene[v] - scene[u]).norm() - (images[v][k] - images[u][ku]).norm();
+        const float r = (scene[v] - scene[u]).norm() - (images(v)[k] - images(u)[ku]).norm();
         e += r * r;
       }
       misfit[k] = e;
@@ -350,7 +370,6 @@ PoseFit solveCyclicPose(const CyclicSymmetry& sym, const Points& model, const Po
   };
   PoseFit best;
   best.rms = std::numeric_limits<float>::max();
-  Points chosen(m);
   fill(a1, std::array{std::pair{a0, 0}});
   const int k1_best = smallest(misfit);
   const std::array<int, 2> k1s{k1_best, smallest(misfit, k1_best)};  // a reflection of the pair fits as well
@@ -359,19 +378,20 @@ PoseFit solveCyclicPose(const CyclicSymmetry& sym, const Points& model, const Po
     fill(a2, placed);
     const int k2_best = smallest(misfit);
     for (const int k2 : {k2_best, smallest(misfit, k2_best)}) {
-      const PoseFit start = solvePose(Points{images[a0][0], images[a1][k1], images[a2][k2]},
-                                      Points{scene[a0], scene[a1], scene[a2]});
+      anchor_model = {images(a0)[0], images(a1)[k1], images(a2)[k2]};
+      anchor_scene = {scene[a0], scene[a1], scene[a2]};
+      const PoseFit start = solvePose(anchor_model, anchor_scene);
       if (!start.ok) continue;
       // Each point at its image nearest the scene under the anchors' pose.
       for (int v = 0; v < m; ++v) {
         int kv = 0;
         float d_best = std::numeric_limits<float>::max();
         for (int k = 0; k < n; ++k)
-          if (const float d = (start.pose * images[v][k] - scene[v]).squaredNorm(); d < d_best) {
+          if (const float d = (start.pose * images(v)[k] - scene[v]).squaredNorm(); d < d_best) {
             d_best = d;
             kv = k;
           }
-        chosen[v] = images[v][kv];
+        chosen[v] = images(v)[kv];
       }
       const PoseFit fit = solvePose(chosen, scene);
       if (fit.ok && fit.rms < best.rms) best = fit;

@@ -8,7 +8,12 @@
 
 #include "test_util.hpp"
 
+#include <optional>
 #include <random>
+#include <span>
+#include <thread>
+
+#include <tbb/task_arena.h>
 
 using namespace binpose;
 
@@ -200,5 +205,44 @@ TEST(CyclicSymmetry, GraphIsItsDefinitionTestedTurnByTurn) {
     // Both kinds of pair are there to get wrong: about a third of the candidates are right.
     EXPECT_GT(linked, n * n / 20) << "order " << order;
     EXPECT_LT(linked, n * n / 2) << "order " << order;
+  }
+}
+
+TEST(CyclicSymmetry, BuffersKeptFromCallToCallGiveAFreshThreadsAnswer) {
+  // The graph's row buffers and the pose's are each thread's, kept from one call to the next:
+  // graphs of 9, 120, 60 and 120 candidates and fits of 12, 3 and 20 pairs in turn on one
+  // thread give what a thread that never ran one gives.
+  const FiveFold part(7);
+  const CandidateSet set(part, 29);
+  auto fresh = [](auto run) {
+    std::optional<decltype(run())> out;
+    std::thread([&] { tbb::task_arena(1).execute([&] { out.emplace(run()); }); }).join();
+    return std::move(*out);
+  };
+  tbb::task_arena one(1);
+  for (const std::size_t n : {9, 120, 60, 120}) {
+    const std::span<const Correspondence> cps(set.cps.data(), n);
+    auto graph = [&] { return cyclicConsistencyGraph(cps, set.scene, set.normals, part.model, part.sym, 1.0f, 10.0f); };
+    Graph kept(0);
+    one.execute([&] { kept = graph(); });
+    const Graph first = fresh(graph);
+    ASSERT_EQ(kept.size(), first.size());
+    for (int v = 0; v < kept.size(); ++v)
+      for (int w = 0; w < kept.words(); ++w) ASSERT_EQ(kept.row(v)[w], first.row(v)[w]) << n << " candidates, row " << v;
+  }
+  const Pose truth = somePose();
+  std::mt19937 rng(31);
+  for (const int m : {12, 3, 20}) {
+    Points members, scene;
+    for (int i = 0; i < m; ++i) {
+      members.push_back(part.model.points[i]);
+      scene.push_back(truth * part.sym.turn(static_cast<int>(rng() % 5)) * part.model.points[i]);
+    }
+    PoseFit kept;
+    one.execute([&] { kept = solveCyclicPose(part.sym, members, scene); });
+    const PoseFit first = fresh([&] { return solveCyclicPose(part.sym, members, scene); });
+    ASSERT_TRUE(kept.ok) << m << " pairs";
+    EXPECT_EQ(kept.pose.matrix(), first.pose.matrix()) << m << " pairs";
+    EXPECT_LT(offBySymmetry(kept.pose, truth, part.sym), 1e-3f) << m << " pairs";
   }
 }
