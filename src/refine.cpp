@@ -441,6 +441,7 @@ Evidence SceneEvidence::evaluate(const Pose& pose, const PreparedModel& model, f
   // Sensor-facing points of the posed model, with their range and direction in the image frame.
   struct Facing { Vec3 p; float range, u, v; bool grazing; };
   std::vector<Facing> facing;
+  facing.reserve(model.points().size() / 2 + 64);  // about half face the sensor: one allocation, not one per doubling
 #if defined(__SSE2__)
   // Four points at a time (poseFour, ViewLanes), each lane summed as the scalar code below sums
   // (the dot as a + (b + c)).

@@ -73,6 +73,10 @@ struct AxisFit {
   const Points* normals = nullptr;
   std::vector<ProfilePoint> profile;
   static constexpr double kTiltWeight = 5.0;  ///< mm per unit of normal tilt residual
+  /// Residual and Jacobian buffers, sized once for all the steps (a cap bin's clique fits
+  /// allocated some 5700 times a run with a vector per residual evaluation).
+  mutable Eigen::VectorXd r0_, r1_;
+  mutable Eigen::MatrixXd J_;
 
   /// The centre q across the axis (basis fx, fy) of the circles of the known radii:
   /// |p_i - q|^2 = r_i^2, less its mean, is linear in q. False when the points leave it open.
@@ -134,9 +138,9 @@ struct AxisFit {
 
   /// Residuals: each point's height and radius about the axis less its profile's (mm), and its
   /// normal's axial part less the profile's (times kTiltWeight).
-  Eigen::VectorXd residuals(const Eigen::Vector3d& a, const Eigen::Vector3d& c) const {
+  void residuals(const Eigen::Vector3d& a, const Eigen::Vector3d& c, Eigen::VectorXd& r) const {
     const std::size_t n = profile.size();
-    Eigen::VectorXd r(3 * n);
+    r.resize(static_cast<Eigen::Index>(3 * n));  // no allocation once sized
     for (std::size_t i = 0; i < n; ++i) {
       const Eigen::Vector3d v = (*scene)[i].cast<double>() - c;
       const double z = v.dot(a);
@@ -144,11 +148,11 @@ struct AxisFit {
       r[3 * i + 1] = (v - z * a).norm() - profile[i].r;
       r[3 * i + 2] = kTiltWeight * ((*normals)[i].cast<double>().dot(a) - profile[i].nz);
     }
-    return r;
   }
 
   [[nodiscard]] double positionRms(const Eigen::Vector3d& a, const Eigen::Vector3d& c) const {
-    const Eigen::VectorXd r = residuals(a, c);
+    Eigen::VectorXd& r = r0_;
+    residuals(a, c, r);
     double sq = 0;
     for (std::size_t i = 0; i < profile.size(); ++i) sq += r[3 * i] * r[3 * i] + r[3 * i + 1] * r[3 * i + 1];
     return std::sqrt(sq / double(profile.size()));
@@ -165,17 +169,21 @@ struct AxisFit {
       a1 = (a0 + d[0] * e1 + d[1] * e2).normalized();
       c1 = c0 + d[2] * e1 + d[3] * e2 + d[4] * a0;
     };
-    double cost = residuals(a, c).squaredNorm();
+    Eigen::VectorXd &r0 = r0_, &r1 = r1_;  // the residuals here and at a trial step
+    Eigen::MatrixXd& J = J_;
+    residuals(a, c, r0);
+    double cost = r0.squaredNorm();
     for (int it = 0; it < 4; ++it) {
-      const Eigen::VectorXd r0 = residuals(a, c);
-      Eigen::MatrixXd J(r0.size(), 5);
+      residuals(a, c, r0);
+      J.resize(r0.size(), 5);
       for (int k = 0; k < 5; ++k) {
         Eigen::Matrix<double, 5, 1> d = Eigen::Matrix<double, 5, 1>::Zero();
         const double step = k < 2 ? 1e-5 : 1e-4;
         d[k] = step;
         Eigen::Vector3d a1, c1;
         moved(a, c, d, a1, c1);
-        J.col(k) = (residuals(a1, c1) - r0) / step;
+        residuals(a1, c1, r1);
+        J.col(k) = (r1 - r0) / step;
       }
       Eigen::Matrix<double, 5, 5> H = J.transpose() * J;
       H.diagonal() *= 1.0 + 1e-6;
@@ -183,7 +191,8 @@ struct AxisFit {
       if (!d.allFinite()) return;
       Eigen::Vector3d a1, c1;
       moved(a, c, d, a1, c1);
-      const double next = residuals(a1, c1).squaredNorm();
+      residuals(a1, c1, r1);
+      const double next = r1.squaredNorm();
       if (!(next < cost)) return;
       const bool done = cost - next < 1e-9 * cost;
       a = a1, c = c1, cost = next;
@@ -377,6 +386,7 @@ std::vector<PoseFit> solveRevolutionPoses(const Orbits& orbits, std::span<const 
   AxisFit fit;
   fit.scene = &scene;
   fit.normals = &scene_normals;
+  fit.profile.reserve(n);
   for (std::size_t i = 0; i < n; ++i) fit.profile.push_back(orbits.profile[orbits.of[model_ids[i]]]);
   std::vector<float> nz(n);
   for (std::size_t i = 0; i < n; ++i) nz[i] = fit.profile[i].nz;

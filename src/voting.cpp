@@ -645,6 +645,7 @@ void NeighbourhoodVoter::vote(std::span<const std::uint32_t> voters) {
       for (const auto o : l.found) l.partners.push_back(partners_[o]);
       l.out.clear();
       l.voter.votePoint(points_, normals_, k, l.partners, l.out);
+      candidates_[k].reserve(l.out.size());  // one allocation
       for (const Correspondence& c : l.out) candidates_[k].push_back(c.model);
     }
   });
