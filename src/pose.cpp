@@ -4,17 +4,22 @@
 #include <Eigen/SVD>
 #include <Eigen/Geometry>
 
+#include <vector>
+
 namespace binpose {
 
 PoseFit solvePose(const Points& model, const Points& scene) {
   PoseFit fit;
   const auto n = static_cast<Eigen::Index>(model.size());
   if (n < 3 || model.size() != scene.size()) return fit;
-  // Each thread's matrices, kept from one call to the next (a clique fit of a part of n-fold
-  // symmetry solves eight poses; each allocated four matrices). No parallel step inside.
-  static thread_local Eigen::Matrix3Xd M, S, Mc, Sc;
-  M.resize(3, n);
-  S.resize(3, n);
+  // The four 3 x n matrices over each thread's buffer, kept from one call to the next (a clique
+  // fit of a part of n-fold symmetry solves eight poses of 3 to 20 points, each of which
+  // allocated four matrices; an Eigen matrix reallocates whenever its size changes, a vector
+  // only when it grows). No parallel step inside.
+  static thread_local std::vector<double> buffer;
+  buffer.resize(static_cast<std::size_t>(12 * n));
+  using Block = Eigen::Map<Eigen::Matrix3Xd>;
+  Block M(buffer.data(), 3, n), S(buffer.data() + 3 * n, 3, n), Mc(buffer.data() + 6 * n, 3, n), Sc(buffer.data() + 9 * n, 3, n);
   for (Eigen::Index i = 0; i < n; ++i) {
     M.col(i) = model[static_cast<std::size_t>(i)].cast<double>();
     S.col(i) = scene[static_cast<std::size_t>(i)].cast<double>();
