@@ -18,8 +18,8 @@ PoseFit solvePose(const Points& model, const Points& scene) {
   // only when it grows). No parallel step inside.
   static thread_local std::vector<double> buffer;
   buffer.resize(static_cast<std::size_t>(12 * n));
-  using Block = Eigen::Map<Eigen::Matrix3Xd>;
-  Block M(buffer.data(), 3, n), S(buffer.data() + 3 * n, 3, n), Mc(buffer.data() + 6 * n, 3, n), Sc(buffer.data() + 9 * n, 3, n);
+  using Columns = Eigen::Map<Eigen::Matrix3Xd>;
+  Columns M(buffer.data(), 3, n), S(buffer.data() + 3 * n, 3, n), Mc(buffer.data() + 6 * n, 3, n), Sc(buffer.data() + 9 * n, 3, n);
   for (Eigen::Index i = 0; i < n; ++i) {
     M.col(i) = model[static_cast<std::size_t>(i)].cast<double>();
     S.col(i) = scene[static_cast<std::size_t>(i)].cast<double>();

@@ -8,10 +8,8 @@
 
 #include "test_util.hpp"
 
-#include <optional>
 #include <random>
 #include <span>
-#include <thread>
 
 #include <tbb/task_arena.h>
 
@@ -214,18 +212,13 @@ TEST(CyclicSymmetry, BuffersKeptFromCallToCallGiveAFreshThreadsAnswer) {
   // thread give what a thread that never ran one gives.
   const FiveFold part(7);
   const CandidateSet set(part, 29);
-  auto fresh = [](auto run) {
-    std::optional<decltype(run())> out;
-    std::thread([&] { tbb::task_arena(1).execute([&] { out.emplace(run()); }); }).join();
-    return std::move(*out);
-  };
   tbb::task_arena one(1);
   for (const std::size_t n : {9, 120, 60, 120}) {
     const std::span<const Correspondence> cps(set.cps.data(), n);
     auto graph = [&] { return cyclicConsistencyGraph(cps, set.scene, set.normals, part.model, part.sym, 1.0f, 10.0f); };
     Graph kept(0);
     one.execute([&] { kept = graph(); });
-    const Graph first = fresh(graph);
+    const Graph first = test::onFreshThread(graph);
     ASSERT_EQ(kept.size(), first.size());
     for (int v = 0; v < kept.size(); ++v)
       for (int w = 0; w < kept.words(); ++w) ASSERT_EQ(kept.row(v)[w], first.row(v)[w]) << n << " candidates, row " << v;
@@ -240,7 +233,7 @@ TEST(CyclicSymmetry, BuffersKeptFromCallToCallGiveAFreshThreadsAnswer) {
     }
     PoseFit kept;
     one.execute([&] { kept = solveCyclicPose(part.sym, members, scene); });
-    const PoseFit first = fresh([&] { return solveCyclicPose(part.sym, members, scene); });
+    const PoseFit first = test::onFreshThread([&] { return solveCyclicPose(part.sym, members, scene); });
     ASSERT_TRUE(kept.ok) << m << " pairs";
     EXPECT_EQ(kept.pose.matrix(), first.pose.matrix()) << m << " pairs";
     EXPECT_LT(offBySymmetry(kept.pose, truth, part.sym), 1e-3f) << m << " pairs";

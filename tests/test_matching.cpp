@@ -16,7 +16,6 @@
 
 #include <memory>
 #include <numeric>
-#include <thread>
 
 #include <tbb/task_arena.h>
 
@@ -312,17 +311,6 @@ TEST(Clique, WorkBoundStopsEarly) {
   EXPECT_TRUE(maximumClique(Graph(0)).vertices.empty());
 }
 
-namespace {
-/// `run` on a thread of its own in an arena of one thread: its buffers kept per thread (the
-/// clique search's, the pose's) start empty there.
-template <class Run>
-auto onFreshThread(Run run) {
-  decltype(run()) out;
-  std::thread([&] { tbb::task_arena(1).execute([&] { out = run(); }); }).join();
-  return out;
-}
-}  // namespace
-
 TEST(Clique, BuffersKeptFromCallToCallGiveAFreshThreadsAnswer) {
   // Graphs of one to four words a row, one after the other on one thread, larger and smaller
   // than the one before: each answer is the one a thread with no buffers yet gives, and holds
@@ -337,7 +325,7 @@ TEST(Clique, BuffersKeptFromCallToCallGiveAFreshThreadsAnswer) {
       for (std::size_t j = i + 1; j < planted.size(); ++j) g.addEdge(planted[i], planted[j]);
     CliqueResult kept;
     one.execute([&] { kept = maximumClique(g); });
-    const CliqueResult fresh = onFreshThread([&] { return maximumClique(g); });
+    const CliqueResult fresh = test::onFreshThread([&] { return maximumClique(g); });
     EXPECT_EQ(kept.vertices, fresh.vertices) << n << " vertices";
     EXPECT_EQ(kept.nodes, fresh.nodes) << n << " vertices";
     EXPECT_GE(kept.vertices.size(), planted.size()) << n << " vertices";
@@ -377,7 +365,7 @@ TEST(Pose, BuffersKeptFromCallToCallGiveAFreshThreadsAnswer) {
       scene.push_back(truth * model.back() + Vec3(float(rng.uniform()), float(rng.uniform()), float(rng.uniform())) * 0.2f);
     }
     const PoseFit kept = solvePose(model, scene);
-    const PoseFit fresh = onFreshThread([&] { return solvePose(model, scene); });
+    const PoseFit fresh = test::onFreshThread([&] { return solvePose(model, scene); });
     ASSERT_TRUE(kept.ok);
     EXPECT_EQ(kept.pose.matrix(), fresh.pose.matrix()) << m << " pairs";
     EXPECT_EQ(kept.rms, fresh.rms) << m << " pairs";

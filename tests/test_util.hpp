@@ -3,11 +3,14 @@
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -46,6 +49,15 @@ inline std::vector<std::pair<float, std::uint32_t>> bruteKnn(const Points& point
 }
 
 inline double deg(double rad) { return rad * 180.0 / 3.14159265358979323846; }
+
+/// What `run()` returns when run on a new thread of its own, in an arena of one thread: the
+/// buffers the library keeps per thread start empty there.
+template <class Run>
+auto onFreshThread(Run run) {
+  std::optional<decltype(run())> out;
+  std::thread([&] { tbb::task_arena(1).execute([&] { out.emplace(run()); }); }).join();
+  return std::move(*out);
+}
 
 }  // namespace binpose::test
 
