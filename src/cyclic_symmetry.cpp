@@ -308,8 +308,8 @@ Graph cyclicConsistencyGraph(std::span<const Correspondence> cps, const Points& 
                     q[i].data(), ck.data(), sk.data(), k0, std::min(sym.order, k0 + 32), dot.data(), cross.data(), z.data(),
                     turns.data());
         // At a turn of the right distance, the three angles of the pair (4.1) as in the scene, within
-        // tol, at every such turn (1.6 a pair on IPD obj 8) without a branch: 78% of the kept pairs
-        // have a turn and 44% of those link, which no branch predicts.
+        // tol, at every such turn (see above) without a branch: 78% of the kept pairs have a turn
+        // and 44% of those link, which no branch predicts.
         for (int p = 0; p < kept.count; ++p) {
           const int j = kept.j[p];
           const Turned nn = turned(u[i], u[j]), na = turned(u[i], q[j]), bn = turned(a, u[j]);

@@ -174,7 +174,6 @@ struct AxisFit {
     residuals(a, c, r0);
     double cost = r0.squaredNorm();
     for (int it = 0; it < 4; ++it) {
-      residuals(a, c, r0);
       J.resize(r0.size(), 5);
       for (int k = 0; k < 5; ++k) {
         Eigen::Matrix<double, 5, 1> d = Eigen::Matrix<double, 5, 1>::Zero();
@@ -196,6 +195,7 @@ struct AxisFit {
       if (!(next < cost)) return;
       const bool done = cost - next < 1e-9 * cost;
       a = a1, c = c1, cost = next;
+      r0.swap(r1);  // the residuals at the step taken are those here now
       if (done) return;
     }
   }
