@@ -108,10 +108,15 @@ std::uint32_t keyWeight(std::size_t model_points, std::size_t list) {
   return static_cast<std::uint32_t>(std::bit_width(model_points / std::max<std::size_t>(list, 1)));
 }
 
-void Voter::countList(std::span<const ModelDatabase::PointId> ids, std::uint16_t times) {
+namespace {
+
+/// Adds `times` to the counter of each model point in `ids` (16-bit counters, or bytes when the
+/// point's votes add up to at most 255).
+template <class Count>
+void countList(Count* votes, std::span<const ModelDatabase::PointId> ids, std::uint16_t times) {
   // Four ids per load: the increments bound this loop, and a load per id took about 5% more
   // (BM_LocalVotes 108-111 ms against 104-105). No branch: every id counts.
-  auto add = [&](std::uint64_t id) { votes_[id] = static_cast<std::uint16_t>(votes_[id] + times); };
+  auto add = [&](std::uint64_t id) { votes[id] = static_cast<Count>(votes[id] + times); };
   std::size_t i = 0;
   for (; i + 4 <= ids.size(); i += 4) {
     std::uint64_t four;
@@ -123,6 +128,8 @@ void Voter::countList(std::span<const ModelDatabase::PointId> ids, std::uint16_t
   }
   for (; i < ids.size(); ++i) add(ids[i]);
 }
+
+}  // namespace
 
 namespace {
 
@@ -149,8 +156,10 @@ BINPOSE_AVX2_INLINE void addAt(__m256i (&plane)[NP], __m256i x, int from) {
 }
 
 /// votes[i] += the count of 256 vertical counters (np planes), 32 counters at a step: each
-/// plane's 32 bits spread over bytes, each byte testing its bit, weighted 2^p.
-__attribute__((target("avx2"))) void addPlanes(const __m256i* plane, int np, std::uint16_t* votes) {
+/// plane's 32 bits spread over bytes, each byte testing its bit, weighted 2^p. Byte counters
+/// take the 32 sums as they are; 16-bit ones widened.
+template <class Count>
+__attribute__((target("avx2"))) void addPlanes(const __m256i* plane, int np, Count* votes) {
   alignas(32) std::uint32_t chunk[8][8];
   for (int p = 0; p < np; ++p) _mm256_store_si256(reinterpret_cast<__m256i*>(chunk[p]), plane[p]);
   const __m256i spread = _mm256_setr_epi8(0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 1, 1, 1, 2, 2, 2, 2, 2, 2, 2, 2, 3, 3, 3,
@@ -164,9 +173,13 @@ __attribute__((target("avx2"))) void addPlanes(const __m256i* plane, int np, std
       sum = _mm256_add_epi8(sum, _mm256_and_si256(on, _mm256_set1_epi8(static_cast<char>(1 << p))));
     }
     auto* at = reinterpret_cast<__m256i*>(votes + 32 * c);
-    _mm256_storeu_si256(at, _mm256_add_epi16(_mm256_loadu_si256(at), _mm256_cvtepu8_epi16(_mm256_castsi256_si128(sum))));
-    _mm256_storeu_si256(at + 1,
-                        _mm256_add_epi16(_mm256_loadu_si256(at + 1), _mm256_cvtepu8_epi16(_mm256_extracti128_si256(sum, 1))));
+    if constexpr (sizeof(Count) == 1) {
+      _mm256_storeu_si256(at, _mm256_add_epi8(_mm256_loadu_si256(at), sum));
+    } else {
+      _mm256_storeu_si256(at, _mm256_add_epi16(_mm256_loadu_si256(at), _mm256_cvtepu8_epi16(_mm256_castsi256_si128(sum))));
+      _mm256_storeu_si256(
+          at + 1, _mm256_add_epi16(_mm256_loadu_si256(at + 1), _mm256_cvtepu8_epi16(_mm256_extracti128_si256(sum, 1))));
+    }
   }
 }
 
@@ -174,8 +187,8 @@ __attribute__((target("avx2"))) void addPlanes(const __m256i* plane, int np, std
 /// step: their counts kept as NP bit planes in registers (vertical counters), each bitset's
 /// 256 bits added in a few logic operations, four at a time through carry-save adders
 /// (Harley-Seal), the planes turned into counts once per step.
-template <int NP>
-__attribute__((target("avx2"))) void addBitsetsSliced(std::uint16_t* votes, const std::uint64_t* const* bits,
+template <int NP, class Count>
+__attribute__((target("avx2"))) void addBitsetsSliced(Count* votes, const std::uint64_t* const* bits,
                                                       std::size_t count, std::size_t blocks) {
   for (std::size_t b = 0; b < blocks; ++b) {
     __m256i plane[NP];
@@ -196,25 +209,27 @@ __attribute__((target("avx2"))) void addBitsetsSliced(std::uint16_t* votes, cons
   }
 }
 
-/// The same for any count, 255 bitsets (8 planes) at a time.
-void addBitsets(std::uint16_t* votes, std::span<const std::uint64_t* const> bits, std::size_t blocks) {
+/// The same for any count, 255 bitsets (8 planes) at a time (byte counters: at most 255 in all).
+template <class Count>
+void addBitsets(Count* votes, std::span<const std::uint64_t* const> bits, std::size_t blocks) {
   for (std::size_t start = 0; start < bits.size(); start += 255) {
     const std::size_t count = std::min<std::size_t>(255, bits.size() - start);
     const std::uint64_t* const* from = bits.data() + start;
     switch (std::bit_width(count)) {
-      case 1: addBitsetsSliced<1>(votes, from, count, blocks); break;
-      case 2: addBitsetsSliced<2>(votes, from, count, blocks); break;
-      case 3: addBitsetsSliced<3>(votes, from, count, blocks); break;
-      case 4: addBitsetsSliced<4>(votes, from, count, blocks); break;
-      case 5: addBitsetsSliced<5>(votes, from, count, blocks); break;
-      case 6: addBitsetsSliced<6>(votes, from, count, blocks); break;
-      case 7: addBitsetsSliced<7>(votes, from, count, blocks); break;
-      default: addBitsetsSliced<8>(votes, from, count, blocks); break;
+      case 1: addBitsetsSliced<1, Count>(votes, from, count, blocks); break;
+      case 2: addBitsetsSliced<2, Count>(votes, from, count, blocks); break;
+      case 3: addBitsetsSliced<3, Count>(votes, from, count, blocks); break;
+      case 4: addBitsetsSliced<4, Count>(votes, from, count, blocks); break;
+      case 5: addBitsetsSliced<5, Count>(votes, from, count, blocks); break;
+      case 6: addBitsetsSliced<6, Count>(votes, from, count, blocks); break;
+      case 7: addBitsetsSliced<7, Count>(votes, from, count, blocks); break;
+      default: addBitsetsSliced<8, Count>(votes, from, count, blocks); break;
     }
   }
 }
 #else
-void addBitsets(std::uint16_t*, std::span<const std::uint64_t* const>, std::size_t) {}
+template <class Count>
+void addBitsets(Count*, std::span<const std::uint64_t* const>, std::size_t) {}
 #endif
 
 // The accumulator's scans, 8 counters to an SSE4.1 step where the build has it (x86-64-v2 and
@@ -275,6 +290,32 @@ __attribute__((target("avx2"))) std::uint16_t packVotes(std::span<const std::uin
   const __m128i half = _mm_max_epu16(_mm256_castsi256_si128(most), _mm256_extracti128_si256(most, 1));
   // The largest lane: the smallest of the complements (phminposuw).
   return static_cast<std::uint16_t>(0xFFFF - _mm_extract_epi16(_mm_minpos_epu16(_mm_xor_si128(half, _mm_set1_epi16(-1))), 0));
+}
+
+/// The largest of the byte counters (a multiple of 32 of them).
+__attribute__((target("avx2"))) std::uint8_t largestByte(std::span<const std::uint8_t> votes) {
+  __m256i most = _mm256_setzero_si256();
+  for (std::size_t i = 0; i < votes.size(); i += 32)
+    most = _mm256_max_epu8(most, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(votes.data() + i)));
+  __m128i half = _mm_max_epu8(_mm256_castsi256_si128(most), _mm256_extracti128_si256(most, 1));
+  half = _mm_max_epu8(half, _mm_srli_si128(half, 8));
+  half = _mm_max_epu8(half, _mm_srli_si128(half, 4));
+  half = _mm_max_epu8(half, _mm_srli_si128(half, 2));
+  half = _mm_max_epu8(half, _mm_srli_si128(half, 1));
+  return static_cast<std::uint8_t>(_mm_cvtsi128_si32(half) & 0xFF);
+}
+
+/// The indices of the byte counters (a multiple of 32 of them) above `above` (< 255),
+/// ascending, into `out` (cleared): 32 tested at once, their bits taken in order.
+__attribute__((target("avx2"))) void bytesAbove(std::span<const std::uint8_t> votes, std::uint8_t above,
+                                                std::vector<std::size_t>& out) {
+  out.clear();
+  const __m256i least = _mm256_set1_epi8(static_cast<char>(above + 1));  // v > above <=> max(v, above + 1) == v
+  for (std::size_t i = 0; i < votes.size(); i += 32) {
+    const __m256i v = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(votes.data() + i));
+    auto bits = static_cast<std::uint32_t>(_mm256_movemask_epi8(_mm256_cmpeq_epi8(_mm256_max_epu8(v, least), v)));
+    for (; bits != 0; bits &= bits - 1) out.push_back(i + static_cast<std::size_t>(std::countr_zero(bits)));
+  }
 }
 
 /// 32 bytes as bits: bit j for a byte equal to base + j (j < 8), none for any other. The byte
@@ -410,7 +451,7 @@ VoteCut upperOutlierCut(std::span<const std::uint16_t> votes, std::vector<std::u
   return cut;
 }
 
-void Voter::countDense() {
+void Voter::countDense(bool narrow) {
   // Bitsets rather than id lists for the lists of a 48th of the model points and more: with n_M
   // = 4000, a list costs about 64 logic operations on 256-bit words and the points' counts
   // about 1.5 operations a point, against about 1 ns a point listed (IPD obj 8's points each
@@ -418,7 +459,10 @@ void Voter::countDense() {
   // ipd8-16, two threads, six alternations of 61 runs): votes 18.7-21.8 ms against 20.6-22.0,
   // ipd0-16 unchanged; IPD obj 8's lists of 83 to 124 points held as bitsets too, 4 MB more.
   // A 16th: one core's votes 38.6-39.1 ms against 36.2-37.7; a 64th as a 48th.
-  if (!dense_lists_.empty()) addBitsets(votes_.data(), dense_lists_, votes_.size() / 256);
+  if (!dense_lists_.empty()) {
+    if (narrow) addBitsets(narrow_.data(), dense_lists_, narrow_.size() / 256);
+    else addBitsets(votes_.data(), dense_lists_, votes_.size() / 256);
+  }
   dense_lists_.clear();
 }
 
@@ -431,6 +475,7 @@ Voter::Voter(const ModelDatabase& db, int keep, std::uint32_t max_list, float sp
   counters_ = orbits_ != nullptr ? orbits_->count : db.model().points.size();
   votes_.assign(256 * ((counters_ + 255) / 256), 0);
   bitsets_ = orbits_ == nullptr && detail::haveAvx2();
+  if (detail::haveAvx2()) narrow_.assign(votes_.size(), 0);
 }
 
 void Voter::useBitsets(bool on) { bitsets_ = on && orbits_ == nullptr && detail::haveAvx2(); }
@@ -472,6 +517,7 @@ void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t
   const std::size_t n_model = db_.model().points.size();
   const auto features = std::max<std::size_t>(1, keys_.size());
   const auto most = static_cast<std::uint32_t>(weigh_rare_ ? std::max<std::size_t>(1, 65535 / features) : 1);
+  std::uint64_t added = 0;  // the votes the lists add, all told: no count is larger
   // The keys' table entries are fetched kKeysAhead keys before they are read.
   constexpr std::size_t kKeysAhead = 16;
   for (std::size_t a = 0; a < std::min(kKeysAhead, distinct_.size()); ++a) db_.prefetch(distinct_[a].key);
@@ -482,6 +528,7 @@ void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t
     if (ids.empty() || ids.size() > max_list_) continue;  // a feature nearly every model point has: no information
     const std::uint32_t weight = weigh_rare_ ? std::min(most, keyWeight(n_model, ids.size())) : 1;
     const auto times = static_cast<std::uint16_t>(distinct_[a].count * weight);
+    added += times;
     if (orbits_ != nullptr) {
       lists_.push_back({orbits_->lookup(key), times});  // the orbits of those points
       continue;
@@ -503,26 +550,52 @@ void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t
     for (std::size_t at = 0; at < std::min<std::size_t>(ids.size(), 128); at += 32) __builtin_prefetch(ids.data() + at);
   };
   for (std::size_t l = 0; l < std::min(kAhead, lists_.size()); ++l) prefetch(l);
-  for (std::size_t l = 0; l < lists_.size(); ++l) {
-    if (l + kAhead < lists_.size()) prefetch(l + kAhead);
-    countList(lists_[l].ids, lists_[l].times);
-  }
-  countDense();
-  select(k, out);
-  std::fill_n(votes_.begin(), counters_, std::uint16_t{0});  // the padding stays zero
+  // When the lists add up to at most 255 votes (a point with fewer partners than that, each
+  // feature adding one), no count passes 255: the counts go into bytes, half the accumulator
+  // to add the bitsets into, scan and clear, and no packing for the histogram.
+  const bool narrow = !narrow_.empty() && added <= 255;
+  auto countLists = [&](auto* votes) {
+    for (std::size_t l = 0; l < lists_.size(); ++l) {
+      if (l + kAhead < lists_.size()) prefetch(l + kAhead);
+      countList(votes, lists_[l].ids, lists_[l].times);
+    }
+  };
+  if (narrow) countLists(narrow_.data());
+  else countLists(votes_.data());
+  countDense(narrow);
+  select(k, narrow, out);
+  if (narrow) std::fill_n(narrow_.begin(), counters_, std::uint8_t{0});  // the padding stays zero
+  else std::fill_n(votes_.begin(), counters_, std::uint16_t{0});
 }
 
-void Voter::select(std::uint32_t k, std::vector<Correspondence>& out) {
+void Voter::select(std::uint32_t k, bool narrow, std::vector<Correspondence>& out) {
   // A_k is the model points with a vote (eq. 9-10): its histogram is the accumulator's without
-  // the zeros.
-  const std::span<const std::uint16_t> votes(votes_.data(), counters_);
-  const VoteCut cut = upperOutlierCut(votes_, bytes_, histogram_);  // with the padding's zeros
+  // the zeros (the padding's zeros included in the scans).
+#if defined(__x86_64__)
+  if (narrow) {
+    VoteCut cut;
+    cut.top = largestByte(narrow_);
+    if (cut.top == 0) return;
+    lowHistogram(narrow_, cut.top, histogram_);  // the top is under 256: always counted
+    cut.limit = outlierLimit(histogram_);
+    if (!(cut.top > cut.limit)) return;  // eq. 11: no upper outlier, no candidate
+    bytesAbove(narrow_, static_cast<std::uint8_t>(cut.limit), outliers_);  // v > limit <=> v > floor(limit)
+    keepCandidates(k, cut, [this](std::size_t m) { return std::uint32_t{narrow_[m]}; }, out);
+    return;
+  }
+#endif
+  (void)narrow;
+  const VoteCut cut = upperOutlierCut(votes_, bytes_, histogram_);
+  if (!(cut.top > cut.limit)) return;  // eq. 11: no upper outlier, no candidate (nor any vote)
+  // Votes are whole: v > limit <=> v > floor(limit).
+  votesAbove(std::span<const std::uint16_t>(votes_.data(), counters_), static_cast<std::uint16_t>(cut.limit), outliers_);
+  keepCandidates(k, cut, [this](std::size_t m) { return std::uint32_t{votes_[m]}; }, out);
+}
+
+template <class Value>
+void Voter::keepCandidates(std::uint32_t k, VoteCut cut, Value value, std::vector<Correspondence>& out) {
   const std::uint16_t top = cut.top;
-  const double limit = cut.limit;
-  if (!(top > limit)) return;  // eq. 11: no upper outlier, no candidate (nor any vote)
-  const auto above = static_cast<std::uint16_t>(limit);  // votes are whole: v > limit <=> v > floor(limit)
-  votesAbove(votes, above, outliers_);
-  const auto value = [this](std::size_t m) { return std::uint32_t{votes_[m]}; };
+  const auto above = static_cast<std::uint16_t>(cut.limit);
   // A body of revolution's accumulator is over its orbits: each one's first point stands for it.
   // A part of cyclic symmetry's over its points: each stands for its class, by the class member.
   const auto model_point = [this](std::size_t m) {
@@ -551,7 +624,7 @@ void Voter::select(std::uint32_t k, std::vector<Correspondence>& out) {
   std::size_t sorted = 0;
   if (range <= 2 * outliers_.size() + 64) {
     rank_.resize(outliers_.size());
-    for (std::size_t r = 0; r < outliers_.size(); ++r) rank_[r] = top - votes_[outliers_[r]];
+    for (std::size_t r = 0; r < outliers_.size(); ++r) rank_[r] = top - value(outliers_[r]);
     sortByCell(rank_, range, bucket_, order_);
     by_votes_.resize(outliers_.size());
     for (std::size_t r = 0; r < order_.size(); ++r) by_votes_[r] = outliers_[order_[r]];

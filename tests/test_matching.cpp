@@ -523,8 +523,9 @@ TEST(Voting, VoterSelectsTheUpperOutliersOfItsCounts) {
   // Each point's accumulator counted here, one feature at a time from the table's lists (eq. 9),
   // and its candidates chosen by selectCandidates (eq. 10-12): the Voter's (equal keys grouped, bitsets,
   // vector scans of the accumulator) must be the same. Every point voting with the whole part
-  // gives tops over 255; with every 9th point as partner, under 100, as the scans' local votes
-  // (the accumulator as bytes, its histogram counted only as far as the fourths need).
+  // gives tops over 255 (16-bit counters); with every 9th point as partner, lists adding under
+  // 255 votes, as the scans' local votes (counted in bytes, the histogram only as far as the
+  // fourths need).
   for (const std::uint32_t stride : {1u, 9u}) {
     WholePart part = wholePart(31);
     std::erase_if(part.group, [&](std::uint32_t i) { return i % stride != 0; });

@@ -89,12 +89,16 @@ class Voter {
                  std::vector<Correspondence>& out);
 
  private:
-  /// Adds `times` to the accumulator of each model point in `ids`.
-  void countList(std::span<const ModelDatabase::PointId> ids, std::uint16_t times);
-  /// Adds the long lists of dense_lists_ (bitsets, ModelDatabase::denseBits) into votes_. AVX2 only.
-  void countDense();
-  /// Appends scene point k's candidates, the upper outliers of the accumulator (eq. 10-12).
-  void select(std::uint32_t k, std::vector<Correspondence>& out);
+  /// Adds the long lists of dense_lists_ (bitsets, ModelDatabase::denseBits) into votes_, or
+  /// into narrow_ (`narrow`). AVX2 only.
+  void countDense(bool narrow);
+  /// Appends scene point k's candidates, the upper outliers of the accumulator (eq. 10-12):
+  /// votes_, or narrow_ (`narrow`).
+  void select(std::uint32_t k, bool narrow, std::vector<Correspondence>& out);
+  /// select's rest, once outliers_ holds the upper outliers (ascending) of counts value(m) cut
+  /// by `cut`: the best, spread by spacing_ (eq. 12).
+  template <class Value>
+  void keepCandidates(std::uint32_t k, VoteCut cut, Value value, std::vector<Correspondence>& out);
 
   const ModelDatabase& db_;
   int keep_;
@@ -118,6 +122,8 @@ class Voter {
   static constexpr std::uint16_t kMostBitsetRepeats = 16;
   std::size_t counters_;                  ///< model points (or orbits)
   std::vector<std::uint16_t> votes_;      ///< A_k, one counter per model point (or orbit), zeros after to a 256 multiple
+  /// The same as bytes, for a point whose lists add at most 255 votes in all (empty without AVX2).
+  std::vector<std::uint8_t> narrow_;
   std::vector<const std::uint64_t*> dense_lists_;  ///< one point's long lists' bitsets, each as often as it adds
   bool bitsets_;                          ///< long lists counted by bitset (where the CPU has AVX2)
   std::vector<std::uint8_t> bytes_;       ///< the accumulator as bytes (upperOutlierCut's scratch)
