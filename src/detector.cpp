@@ -139,6 +139,7 @@ struct Matcher {
   const PreparedScene& scene;
   const PointCloud& scan;
   const PointGrid& scan_grid;
+  const PixelNeighbours* pixels;    ///< the scan's, for ICP's searches (null: the grid alone)
   const SceneEvidence& evidence;
   const NeighbourhoodVoter* local;  ///< the local votes (null: each sub-group votes, 4.3)
   const std::vector<char>& may_vote;  ///< with local votes, the points of voter_spacing
@@ -305,7 +306,7 @@ struct Matcher {
       if (p.prescreen && best < gate) {
         if (p.prescreen_retry_steps > 0 && best >= p.prescreen_retry_share * gate) {
           // Near the scan but a few mm off: a few coarse ICP steps, and another look.
-          const IcpParams nudge{p.prescreen_retry_steps, p.icp_max_distance, p.verify_tolerance, p.viewpoint, {}, nullptr};
+          const IcpParams nudge{p.prescreen_retry_steps, p.icp_max_distance, p.verify_tolerance, p.viewpoint, {}, nullptr, pixels};
           const Pose moved = refinePose(det.pose, icp_model, scan.points, scan_grid, nudge);
           if (const float score = prescore(moved); score >= gate) {
             best = score;
@@ -319,7 +320,7 @@ struct Matcher {
       }
     }
     if (p.refine) {
-      IcpParams icp{p.icp_iterations, p.icp_max_distance, p.verify_tolerance, p.viewpoint, {}, nullptr};
+      IcpParams icp{p.icp_iterations, p.icp_max_distance, p.verify_tolerance, p.viewpoint, {}, nullptr, pixels};
       if (p.verify && p.refound_share > 0) {  // see take() in Detector::detect
         icp.path = &s.outcome.path;
         icp.stop = found;
@@ -482,8 +483,7 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
                          evidence_slot->setGrazingAngle(p.grazing_angle);
                        });
   evidence_slot->setBackground(std::move(planes), std::min(p.verify_tolerance, p.plane_tolerance));
-  std::vector<PendingFit>().swap(fits);  // neither is needed any more: their memory back before the votes
-  pixels.reset();
+  std::vector<PendingFit>().swap(fits);  // not needed any more: its memory back before the votes (the pixels stay for ICP)
   result.plane_points = result.sampled_points - scene.points.size();
   std::vector<std::vector<std::uint32_t>> groups;
   const auto max_list = static_cast<std::uint32_t>(p.max_key_share * static_cast<float>(model.size()));
@@ -520,8 +520,9 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   auto seen = [&](const Pose& pose) {
     return std::any_of(found.begin(), found.end(), [&](const Pose& f) { return samePose(pose, f); }) || std::any_of(tried.begin(), tried.end(), [&](const Pose& t) { return samePose(pose, t, p.tried_share); });
   };
-  const Matcher matcher{db_, p,       icp_model_, scored_model_, scene,   scan, scan_grid, evidence, local.get(), may_vote,
-                        orbits(), cyclicSymmetry(), seen, refound};
+  const Matcher matcher{db_,      p,        icp_model_,  scored_model_, scene,    scan,
+                        scan_grid, &*pixels, evidence,    local.get(),   may_vote, orbits(),
+                        cyclicSymmetry(), seen, refound};
   std::vector<char> removed(scene.points.size(), 0);
   std::vector<Hypothesis> hypotheses;
   int confident = 0;  // detections that removed their points

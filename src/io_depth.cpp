@@ -63,6 +63,8 @@ PointCloud depthToCloud(const std::vector<std::uint16_t>& depth, int width, int 
   cloud.height = height;
   cloud.fx = float(k.fx);
   cloud.fy = float(k.fy);
+  cloud.cx = float(k.cx);
+  cloud.cy = float(k.cy);
   for (int v = 0; v < height; ++v)
     for (int u = 0; u < width; ++u) {
       const std::uint16_t raw = depth[static_cast<std::size_t>(v) * width + u];

@@ -52,12 +52,12 @@ PixelNeighbours::PixelNeighbours(const PointCloud& cloud) : cloud_(cloud) {
   first_ = std::move(first);
 }
 
-float PixelNeighbours::reach(const Vec3& q, int pixels) const {
+float PixelNeighbours::reach(const Vec3& q, float pixels) const {
   // A point p seen through a pixel m columns right of q's has the image coordinate X / Z of q's
   // plus m / fx (pinhole), so it lies beyond the plane X = s Z, s = x_q + m / fx, from q. The
   // distance from q to that plane, Z_q (m / fx) / sqrt(1 + s^2), bounds |p - q| from below;
   // |s| <= |x_q| + m / fx covers the left side too, and rows likewise. It grows with m.
-  const float dx = float(pixels) / cloud_.fx, dy = float(pixels) / cloud_.fy;
+  const float dx = pixels / cloud_.fx, dy = pixels / cloud_.fy;
   const float x = std::abs(q.x() / q.z()) + dx, y = std::abs(q.y() / q.z()) + dy;
   return q.z() * std::min(dx / std::sqrt(1.0f + x * x), dy / std::sqrt(1.0f + y * y));
 }
@@ -140,7 +140,7 @@ bool PixelNeighbours::knn(std::uint32_t i, std::size_t k, std::uint32_t* indices
   // would. Strictly inside the reach, with a margin for the points' rounding to float: every
   // point outside the window is then farther than the k-th, even at equal index.
   auto proved = [&](int half, float limit) {
-    const float reach = 0.999f * this->reach(q, half + 1);
+    const float reach = 0.999f * this->reach(q, float(half + 1));
     return limit < reach * reach;
   };
   const Points& cloud = cloud_.points;
@@ -150,6 +150,74 @@ bool PixelNeighbours::knn(std::uint32_t i, std::size_t k, std::uint32_t* indices
     case 8: return windowNearest<8>(cloud, q, k, indices, sq_dists, points, proved);
     default: return windowNearest<0>(cloud, q, k, indices, sq_dists, points, proved);
   }
+}
+
+const std::int32_t* PixelNeighbours::centreOf(const Vec3& q) const {
+  if (!first_ || !(q.z() > 0) || !q.allFinite()) return nullptr;
+  const float u = std::nearbyint(cloud_.fx * (q.x() / q.z()) + cloud_.cx);
+  const float v = std::nearbyint(cloud_.fy * (q.y() / q.z()) + cloud_.cy);
+  if (!(u >= 0 && u < float(cloud_.width) && v >= 0 && v < float(cloud_.height))) return nullptr;
+  return first_.get() + (std::ptrdiff_t(v) + kPad) * pitch_ + std::ptrdiff_t(u) + kPad;
+}
+
+namespace {
+
+/// The nearest (squared distance's bits, index) of the points of a window's rows, or those of
+/// the ring between two windows, as NearestKeys<1>.
+template <class Points_>
+std::uint64_t nearestKey(const Points& cloud, const Vec3& q, std::uint64_t best, int half, int inner, Points_ points) {
+  auto offer = [&](int dy, int from, int to) {
+    const auto [begin, end] = points(dy, from, to);
+    for (std::uint32_t j = begin; j < end; ++j) {
+      const std::uint64_t key = std::uint64_t(std::bit_cast<std::uint32_t>((cloud[j] - q).squaredNorm())) << 32 | j;
+      best = std::min(best, key);
+    }
+  };
+  for (int dy = -half; dy <= half; ++dy) {
+    if (std::abs(dy) > inner) {
+      offer(dy, -half, half);
+    } else {
+      offer(dy, -half, -inner - 1);
+      offer(dy, inner + 1, half);
+    }
+  }
+  return best;
+}
+
+}  // namespace
+
+PixelNeighbours::Proof PixelNeighbours::nearest(const Vec3& q, float sq_limit, std::uint32_t& index, float& sq_dist,
+                                                float* clearance) const {
+  const std::int32_t* centre = centreOf(q);
+  if (centre == nullptr || !(sq_limit >= 0)) return Proof::kUnknown;
+  auto points = [&](int dy, int from, int to) {
+    const std::int32_t* row = centre + dy * pitch_;
+    return std::pair<std::uint32_t, std::uint32_t>(std::uint32_t(row[from]), std::uint32_t(row[to + 1]));
+  };
+  std::uint64_t best = ~std::uint64_t{0};
+  int inner = -1;  // the window searched so far (none)
+  for (const int half : {kHalfWindow, kMaxHalfWindow}) {
+    best = nearestKey(cloud_.points, q, best, half, inner, points);
+    inner = half;
+    const float d2 = best == ~std::uint64_t{0} ? INFINITY : std::bit_cast<float>(std::uint32_t(best >> 32));
+    // Every point outside the window lies farther than `reach` (q's image lies within half a
+    // pixel of its pixel's centre, less a margin for the rounding of its projection).
+    const float reach = 0.999f * this->reach(q, float(half) + 0.49f);
+    if (d2 < reach * reach) {  // the window's nearest is the cloud's
+      if (d2 <= sq_limit) {
+        index = std::uint32_t(best);
+        sq_dist = d2;
+        return Proof::kFound;
+      }
+      if (clearance != nullptr) *clearance = std::sqrt(d2);
+      return Proof::kNone;
+    }
+    if (sq_limit < reach * reach && !(d2 <= sq_limit)) {  // none within the limit, in the window or beyond
+      if (clearance != nullptr) *clearance = std::min(reach, std::sqrt(d2));
+      return Proof::kNone;
+    }
+  }
+  return Proof::kUnknown;
 }
 
 }  // namespace binpose

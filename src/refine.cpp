@@ -255,10 +255,46 @@ Pose refinePose(const Pose& pose, const Points& model_points, const Points& mode
   return refinePose(pose, PreparedModel(model_points, model_normals), scan, scan_grid, params);
 }
 
+namespace {
+
+// The scan's nearest point through its pixels where they prove it, else through the grid: the
+// same answers as PointGrid's (the squared limits computed as it computes them).
+using Proof = PixelNeighbours::Proof;
+
+/// PointGrid::nearestWithin.
+bool nearestWithin(const PointGrid& grid, const PixelNeighbours* pixels, const Vec3& q, float sq_limit, std::uint32_t& index,
+                   float& sq_dist) {
+  const Proof proof = pixels != nullptr ? pixels->nearest(q, sq_limit, index, sq_dist) : Proof::kUnknown;
+  return proof == Proof::kFound || (proof == Proof::kUnknown && grid.nearestWithin(q, sq_limit, index, sq_dist));
+}
+
+/// PointGrid::nearest with its clearance (any that holds: the caller skips only searches that
+/// would find nothing).
+bool nearest(const PointGrid& grid, const PixelNeighbours* pixels, const Vec3& q, float max_distance, std::uint32_t& index,
+             float& sq_dist, float& clearance) {
+  float none = 0;
+  const Proof proof = pixels != nullptr && max_distance >= 0 ? pixels->nearest(q, max_distance * max_distance, index, sq_dist, &none)
+                                                             : Proof::kUnknown;
+  if (proof == Proof::kUnknown) return grid.nearest(q, max_distance, index, sq_dist, clearance);
+  clearance = proof == Proof::kFound ? 0.0f : none;
+  return proof == Proof::kFound;
+}
+
+/// PointGrid::nearest.
+bool nearest(const PointGrid& grid, const PixelNeighbours* pixels, const Vec3& q, float max_distance, std::uint32_t& index,
+             float& sq_dist) {
+  const Proof proof = pixels != nullptr && max_distance >= 0 ? pixels->nearest(q, max_distance * max_distance, index, sq_dist)
+                                                             : Proof::kUnknown;
+  return proof == Proof::kFound || (proof == Proof::kUnknown && grid.nearest(q, max_distance, index, sq_dist));
+}
+
+}  // namespace
+
 Pose refinePose(const Pose& pose, const PreparedModel& model, const Points& scan, const PointGrid& scan_grid,
                 const IcpParams& params) {
   const Points& model_points = model.points();
   const Vec3& model_centre = model.centre();
+  const PixelNeighbours* pixels = params.pixels != nullptr && params.pixels->usable() ? params.pixels : nullptr;
   const double length = model.reach();  // the part's reach from its centre: rotations in mm at its edge
   Pose current = pose;
   float gate = params.max_distance;
@@ -301,8 +337,8 @@ Pose refinePose(const Pose& pose, const PreparedModel& model, const Points& scan
         if (j == kUnpaired && clearance[i] - (p - missed_at[i]).norm() > gate + kClearanceMargin) continue;
         float d2;
         const float old_d2 = j != kUnpaired ? (scan[j] - p).squaredNorm() : INFINITY;
-        const bool found = old_d2 <= gate * gate ? scan_grid.nearestWithin(p, old_d2, j, d2)
-                                                 : scan_grid.nearest(p, gate, j, d2, clearance[i]);
+        const bool found = old_d2 <= gate * gate ? nearestWithin(scan_grid, pixels, p, old_d2, j, d2)
+                                                 : nearest(scan_grid, pixels, p, gate, j, d2, clearance[i]);
         if (!found) {
           j = kUnpaired;
           missed_at[i] = p;
@@ -360,7 +396,8 @@ Pose refinePose(const Pose& pose, const PreparedModel& model, const Points& scan
 }
 
 SceneEvidence::SceneEvidence(const Points& scan, const PointGrid& grid, const Vec3& viewpoint, const PixelNeighbours* pixels)
-    : grid_(grid), viewpoint_(viewpoint), to_view_(Eigen::Matrix3f::Identity()) {
+    : grid_(grid), pixels_(pixels != nullptr && pixels->usable() ? pixels : nullptr), viewpoint_(viewpoint),
+      to_view_(Eigen::Matrix3f::Identity()) {
   if (scan.empty()) return;
   Vec3 axis = Vec3::Zero();
   for (const Vec3& p : scan) axis += p - viewpoint;
@@ -515,7 +552,10 @@ Evidence SceneEvidence::evaluate(const Pose& pose, const PreparedModel& model, f
       }
       float d2;
       // The nearest scan point itself only for the support list; the score asks only whether there is one.
-      if (support != nullptr ? grid_.nearest(f.p, tolerance, nearest[i], d2) : grid_.anyWithin(f.p, tolerance)) {
+      // (Only the nearest through the pixels: most of the score's points with none within the
+      // tolerance lie off the scan's surface, where the grid's cells are empty and the pixels'
+      // windows full; asked first for any point, the pixels lost 0.4-0.9 ms a run.)
+      if (support != nullptr ? binpose::nearest(grid_, pixels_, f.p, tolerance, nearest[i], d2) : grid_.anyWithin(f.p, tolerance)) {
         const bool on_bin = std::any_of(background_.begin(), background_.end(),
                                         [&](const Plane& b) { return b.distance(f.p) <= background_tolerance_; });
         if (!on_bin) verdict[i] = kSupported;

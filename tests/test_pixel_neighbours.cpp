@@ -73,6 +73,50 @@ TEST(PixelNeighbours, BinScanAnswersAreTheNearestOfTheWholeCloud) {
   EXPECT_FALSE(PixelNeighbours(scene.cloud).knn(0, 33, idx, d2));
 }
 
+// The nearest scan point of any point (ICP's posed model points): near the scan's surface, off
+// it, and far from it, under limits from half a millimetre to 8 mm. Each answer proved from the
+// pixels is the whole cloud's (brute force): the same point and squared distance, or none
+// within the limit with a clearance that holds; the rest is left to the grid.
+TEST(PixelNeighbours, NearestOfAnyPointIsTheWholeCloudsOrLeftToTheGrid) {
+  const SimulatedScene scene = capsInBin();
+  const PixelNeighbours pixels(scene.cloud);
+  ASSERT_TRUE(pixels.usable());
+  using Proof = PixelNeighbours::Proof;
+  Rng rng(11);
+  std::size_t asked = 0, found = 0, none = 0;
+  for (std::size_t i = 0; i < scene.cloud.size(); i += 397)
+    for (const float off : {0.2f, 1.0f, 3.0f, 12.0f}) {
+      const Vec3 dir = Vec3(rng.uniform() - 0.5f, rng.uniform() - 0.5f, rng.uniform() - 0.5f).normalized();
+      const Vec3 q = scene.cloud.points[i] + off * dir;
+      const auto truth = test::bruteKnn(scene.cloud.points, q, 1).front();
+      for (const float limit : {0.5f, 2.0f, 8.0f}) {
+        ++asked;
+        std::uint32_t index = 0;
+        float d2 = 0, clearance = 0;
+        const Proof proof = pixels.nearest(q, limit * limit, index, d2, &clearance);
+        if (proof == Proof::kFound) {
+          ++found;
+          EXPECT_EQ(index, truth.second) << i << " " << off << " " << limit;
+          EXPECT_EQ(d2, truth.first) << i << " " << off << " " << limit;
+          EXPECT_LE(d2, limit * limit);
+        } else if (proof == Proof::kNone) {
+          ++none;
+          EXPECT_GT(truth.first, limit * limit) << i << " " << off << " " << limit;
+          EXPECT_GE(clearance, limit);
+          EXPECT_LE(clearance * clearance, truth.first * 1.0001f);  // no point nearer than the clearance
+        }
+      }
+    }
+  EXPECT_GT(found, asked / 3);
+  EXPECT_GT(none, asked / 10);
+  EXPECT_GT(found + none, asked * 3 / 4);
+  // Behind the camera, and outside the image: the grid's.
+  std::uint32_t index = 0;
+  float d2 = 0;
+  EXPECT_EQ(pixels.nearest(Vec3(0, 0, -100), 4.0f, index, d2), Proof::kUnknown);
+  EXPECT_EQ(pixels.nearest(Vec3(1e4f, 0, 100), 4.0f, index, d2), Proof::kUnknown);
+}
+
 TEST(PixelNeighbours, NearestBeyondTheWindowAreLeftToTheGrid) {
   // A surface 30 mm deeper at each column: a point's nearest are in its own column, about 0.7
   // mm a row apart. Its 8 nearest lie within 4 rows, inside the largest window (9 x 9 pixels);

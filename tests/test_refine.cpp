@@ -157,6 +157,37 @@ TEST(SceneEvidence, PixelNeighboursGiveTheSameEvidenceAsTheGrid) {
   EXPECT_GT(contradicted, 0);  // the range image was asked
 }
 
+// ICP asks the depth image's pixels first for each model point's nearest scan point: the same
+// pairs, so the same steps and the same pose, bit for bit, as with the grid alone.
+TEST(Refine, PixelNeighboursGiveTheSamePoseAsTheGrid) {
+  const Mesh cap = makeCap();
+  const OrientedModel model = prepareModel(cap, ModelParams{});
+  const BinParams bin;
+  const std::vector<Pose> world = dropIntoBin(cap, 6, bin, 1.0f, 7);
+  const SimulatedScene scene = renderBin(cap, world, bin, SensorParams{}, 3);
+  const PixelNeighbours pixels(scene.cloud);
+  ASSERT_TRUE(pixels.usable());
+  const PointGrid grid(scene.cloud.points);
+  const PreparedModel prepared(model.points, model.normals);
+  int moved = 0;
+  for (const SimulatedInstance& instance : scene.instances)
+    for (const float off : {0.0f, 1.5f, 4.0f}) {  // from the truth, and from poses a few mm and degrees off it
+      const Pose start = perturbed(instance.pose, Vec3(off, -0.5f * off, 0.7f * off), 0.02f * off, Vec3(1, 2, 0));
+      IcpParams icp;
+      icp.viewpoint = scene.cloud.viewpoint;
+      std::vector<Pose> by_grid, by_pixels;
+      icp.path = &by_grid;
+      const Pose a = refinePose(start, prepared, scene.cloud.points, grid, icp);
+      icp.path = &by_pixels;
+      icp.pixels = &pixels;
+      const Pose b = refinePose(start, prepared, scene.cloud.points, grid, icp);
+      EXPECT_EQ(by_grid.size(), by_pixels.size());
+      EXPECT_TRUE(a.matrix() == b.matrix()) << "start " << off << " mm off";
+      moved += !(a.matrix() == start.matrix());
+    }
+  EXPECT_GT(moved, 6);  // ICP ran its steps
+}
+
 // A model made ready once (PreparedModel) holds its centre and reach as ICP linearises about
 // them, and refuses points without normals.
 TEST(PreparedModel, CentreReachAndBadInput) {

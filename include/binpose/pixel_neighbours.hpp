@@ -30,8 +30,20 @@ class PixelNeighbours {
   /// k over 32 (then ask the grid); the outputs are written only when true.
   bool knn(std::uint32_t i, std::size_t k, std::uint32_t* indices, float* sq_dists) const;
 
+  /// What a search among the pixels proved of the whole cloud.
+  enum class Proof { kFound, kNone, kUnknown };
+  /// The nearest cloud point of any point q in front of the camera (ICP's posed model points,
+  /// the score's), with a squared distance of at most `sq_limit`, as PointGrid::nearest gives it
+  /// (equal distances by index): looked for among the points of the pixels around q's image
+  /// (3 x 3, then 9 x 9), proved as knn's. kFound (index and sq_dist written), or kNone with
+  /// `clearance` (when given) a distance, sqrt(sq_limit) or more, within which q has no point;
+  /// kUnknown when the pixels prove neither (ask the grid), and for q outside the image.
+  Proof nearest(const Vec3& q, float sq_limit, std::uint32_t& index, float& sq_dist, float* clearance = nullptr) const;
+
  private:
-  [[nodiscard]] float reach(const Vec3& q, int pixels) const;
+  [[nodiscard]] float reach(const Vec3& q, float pixels) const;
+  /// The padded pixel table's entry of q's pixel, or null when q's image lies outside the image.
+  [[nodiscard]] const std::int32_t* centreOf(const Vec3& q) const;
 
   const PointCloud& cloud_;
   std::ptrdiff_t pitch_ = 0;  ///< a row's pixels with the margins

@@ -21,6 +21,9 @@ struct IcpParams {
   /// When set: given the pose after each step, true ends ICP there (that pose is returned).
   std::function<bool(const Pose&)> stop;
   std::vector<Pose>* path = nullptr;  ///< when set: each step's pose is appended
+  /// When set: the scan's PixelNeighbours (the scan a depth image's cloud), asked first for each
+  /// model point's nearest scan point (the same pairs as the grid's where they prove them).
+  const PixelNeighbours* pixels = nullptr;
 };
 
 /// Oriented model points, without the rest of a model's description.
@@ -97,8 +100,9 @@ struct Evidence {
 /// free-space contradictions.
 class SceneEvidence {
  public:
-  /// `pixels`, when given, is the scan's PixelNeighbours: the scan spacing's sample asks it
-  /// first (the same answers as the grid, several times faster).
+  /// `pixels`, when given, is the scan's PixelNeighbours, which must outlive this: the scan
+  /// spacing's sample and evaluate()'s searches ask it first (the same answers as the grid,
+  /// faster).
   SceneEvidence(const Points& scan, const PointGrid& grid, const Vec3& viewpoint, const PixelNeighbours* pixels = nullptr);
   /// `background`: the bin's planes (planes.hpp; none by default). A model point within
   /// `background_tolerance` of one is not supported by the scan there: the bin is seen, not the
@@ -126,6 +130,7 @@ class SceneEvidence {
   [[nodiscard]] long cellAt(float u, float v) const;
 
   const PointGrid& grid_;
+  const PixelNeighbours* pixels_;
   Vec3 viewpoint_;
   std::vector<Plane> background_;
   float background_tolerance_ = 0;

@@ -32,6 +32,7 @@ struct PointCloud {
   /// searches then start from the pixel's neighbours (PixelNeighbours). Keep them 0 for a cloud
   /// whose points were moved out of that frame.
   float fx = 0, fy = 0;
+  float cx = 0, cy = 0;  ///< the principal point, pixels (with fx and fy)
 
   [[nodiscard]] std::size_t size() const { return points.size(); }
   [[nodiscard]] bool empty() const { return points.empty(); }
