@@ -21,8 +21,9 @@ struct IcpParams {
   /// When set: given the pose after each step, true ends ICP there (that pose is returned).
   std::function<bool(const Pose&)> stop;
   std::vector<Pose>* path = nullptr;  ///< when set: each step's pose is appended
-  /// When set: the scan's PixelNeighbours (the scan a depth image's cloud), asked first for each
-  /// model point's nearest scan point (the same pairs as the grid's where they prove them).
+  /// When set: the PixelNeighbours of the very cloud whose points are the scan (a depth image's),
+  /// asked first for each model point's nearest scan point: the same pairs as the grid's, faster
+  /// where the pixels prove them (most points of a part the scan sees).
   const PixelNeighbours* pixels = nullptr;
 };
 
