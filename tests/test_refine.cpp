@@ -39,6 +39,13 @@ Pose perturbed(const Pose& pose, const Vec3& t, float angle, const Vec3& axis) {
   return p;
 }
 
+/// The cap's model, and six caps dropped into the bin (`seed`) as the default sensor sees them.
+std::pair<OrientedModel, SimulatedScene> capsDropped(std::uint64_t seed) {
+  const Mesh cap = makeCap();
+  const BinParams bin;
+  return {prepareModel(cap, ModelParams{}), renderBin(cap, dropIntoBin(cap, 6, bin, 1.0f, seed), bin, SensorParams{}, 3)};
+}
+
 double angleDeg(const Eigen::Matrix3f& a, const Eigen::Matrix3f& b) {
   return test::deg(Eigen::AngleAxisf(a.transpose() * b).angle());
 }
@@ -130,11 +137,7 @@ TEST(Evidence, GrazingPointsAreCountedApart) {
 // The scan spacing's sample from the depth image's pixel neighbours: the same range image, so
 // the same verdicts, point for point, as with the grid alone.
 TEST(SceneEvidence, PixelNeighboursGiveTheSameEvidenceAsTheGrid) {
-  const Mesh cap = makeCap();
-  const OrientedModel model = prepareModel(cap, ModelParams{});
-  const BinParams bin;
-  const std::vector<Pose> world = dropIntoBin(cap, 6, bin, 1.0f, 5);
-  const SimulatedScene scene = renderBin(cap, world, bin, SensorParams{}, 3);
+  const auto [model, scene] = capsDropped(5);
   const PixelNeighbours pixels(scene.cloud);
   ASSERT_TRUE(pixels.usable());
   const PointGrid grid(scene.cloud.points);
@@ -160,11 +163,7 @@ TEST(SceneEvidence, PixelNeighboursGiveTheSameEvidenceAsTheGrid) {
 // ICP asks the depth image's pixels first for each model point's nearest scan point: the same
 // pairs, so the same steps and the same pose, bit for bit, as with the grid alone.
 TEST(Refine, PixelNeighboursGiveTheSamePoseAsTheGrid) {
-  const Mesh cap = makeCap();
-  const OrientedModel model = prepareModel(cap, ModelParams{});
-  const BinParams bin;
-  const std::vector<Pose> world = dropIntoBin(cap, 6, bin, 1.0f, 7);
-  const SimulatedScene scene = renderBin(cap, world, bin, SensorParams{}, 3);
+  const auto [model, scene] = capsDropped(7);
   const PixelNeighbours pixels(scene.cloud);
   ASSERT_TRUE(pixels.usable());
   const PointGrid grid(scene.cloud.points);
