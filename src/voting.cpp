@@ -139,10 +139,6 @@ void prefetchIds(std::span<const ModelDatabase::PointId> ids) {
   for (std::uintptr_t at = first; at < end; at += 64) __builtin_prefetch(reinterpret_cast<const void*>(at));
 }
 
-}  // namespace
-
-namespace {
-
 #if defined(__x86_64__)
 BINPOSE_AVX2_INLINE __m256i load256(const std::uint64_t* at) { return _mm256_loadu_si256(reinterpret_cast<const __m256i*>(at)); }
 
@@ -461,7 +457,8 @@ VoteCut upperOutlierCut(std::span<const std::uint16_t> votes, std::vector<std::u
   return cut;
 }
 
-void Voter::countDense(bool narrow) {
+template <class Count>
+void Voter::countDense(std::vector<Count>& counters) {
   // Bitsets rather than id lists for the lists of a 48th of the model points and more: with n_M
   // = 4000, a list costs about 64 logic operations on 256-bit words and the points' counts
   // about 1.5 operations a point, against about 1 ns a point listed (IPD obj 8's points each
@@ -469,10 +466,7 @@ void Voter::countDense(bool narrow) {
   // ipd8-16, two threads, six alternations of 61 runs): votes 18.7-21.8 ms against 20.6-22.0,
   // ipd0-16 unchanged; IPD obj 8's lists of 83 to 124 points held as bitsets too, 4 MB more.
   // A 16th: one core's votes 38.6-39.1 ms against 36.2-37.7; a 64th as a 48th.
-  if (!dense_lists_.empty()) {
-    if (narrow) addBitsets(narrow_.data(), dense_lists_, narrow_.size() / 256);
-    else addBitsets(votes_.data(), dense_lists_, votes_.size() / 256);
-  }
+  if (!dense_lists_.empty()) addBitsets(counters.data(), dense_lists_, counters.size() / 256);
   dense_lists_.clear();
 }
 
@@ -560,15 +554,14 @@ void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t
   // feature adding one), no count passes 255: the counts go into bytes, half the accumulator
   // to add the bitsets into, scan and clear, and no packing for the histogram.
   const bool narrow = !narrow_.empty() && added <= 255;
-  auto countLists = [&](auto* votes) {
-    for (const List& list : lists_) countList(votes, list.ids, list.times);
+  const auto tally = [&](auto& counters) {
+    for (const List& list : lists_) countList(counters.data(), list.ids, list.times);
+    countDense(counters);
+    select(k, narrow, out);
+    std::fill_n(counters.begin(), counters_, 0);  // the padding stays zero
   };
-  if (narrow) countLists(narrow_.data());
-  else countLists(votes_.data());
-  countDense(narrow);
-  select(k, narrow, out);
-  if (narrow) std::fill_n(narrow_.begin(), counters_, std::uint8_t{0});  // the padding stays zero
-  else std::fill_n(votes_.begin(), counters_, std::uint16_t{0});
+  if (narrow) tally(narrow_);
+  else tally(votes_);
 }
 
 void Voter::select(std::uint32_t k, bool narrow, std::vector<Correspondence>& out) {

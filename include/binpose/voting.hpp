@@ -89,9 +89,10 @@ class Voter {
                  std::vector<Correspondence>& out);
 
  private:
-  /// Adds the long lists of dense_lists_ (bitsets, ModelDatabase::denseBits) into votes_, or
-  /// into narrow_ (`narrow`). AVX2 only.
-  void countDense(bool narrow);
+  /// Adds the long lists of dense_lists_ (bitsets, ModelDatabase::denseBits) into `counters`
+  /// (votes_ or narrow_). AVX2 only.
+  template <class Count>
+  void countDense(std::vector<Count>& counters);
   /// Appends scene point k's candidates, the upper outliers of the accumulator (eq. 10-12):
   /// votes_, or narrow_ (`narrow`).
   void select(std::uint32_t k, bool narrow, std::vector<Correspondence>& out);
