@@ -261,10 +261,19 @@ namespace {
 // same answers as PointGrid's (the squared limits computed as it computes them).
 using Proof = PixelNeighbours::Proof;
 
+/// The pixels' proof for q's nearest within sqrt(sq_limit) (kUnknown without pixels: the grid's).
+Proof askPixels(const PixelNeighbours* pixels, const Vec3& q, float sq_limit, std::uint32_t& index, float& sq_dist,
+                float* clearance = nullptr) {
+  return pixels != nullptr ? pixels->nearest(q, sq_limit, index, sq_dist, clearance) : Proof::kUnknown;
+}
+
+/// max_distance squared as PointGrid::nearest squares it; negative (no search) when it is.
+float squaredLimit(float max_distance) { return max_distance >= 0 ? max_distance * max_distance : -1.0f; }
+
 /// PointGrid::nearestWithin.
 bool nearestWithin(const PointGrid& grid, const PixelNeighbours* pixels, const Vec3& q, float sq_limit, std::uint32_t& index,
                    float& sq_dist) {
-  const Proof proof = pixels != nullptr ? pixels->nearest(q, sq_limit, index, sq_dist) : Proof::kUnknown;
+  const Proof proof = askPixels(pixels, q, sq_limit, index, sq_dist);
   return proof == Proof::kFound || (proof == Proof::kUnknown && grid.nearestWithin(q, sq_limit, index, sq_dist));
 }
 
@@ -273,8 +282,7 @@ bool nearestWithin(const PointGrid& grid, const PixelNeighbours* pixels, const V
 bool nearest(const PointGrid& grid, const PixelNeighbours* pixels, const Vec3& q, float max_distance, std::uint32_t& index,
              float& sq_dist, float& clearance) {
   float none = 0;
-  const Proof proof = pixels != nullptr && max_distance >= 0 ? pixels->nearest(q, max_distance * max_distance, index, sq_dist, &none)
-                                                             : Proof::kUnknown;
+  const Proof proof = askPixels(pixels, q, squaredLimit(max_distance), index, sq_dist, &none);
   if (proof == Proof::kUnknown) return grid.nearest(q, max_distance, index, sq_dist, clearance);
   clearance = proof == Proof::kFound ? 0.0f : none;
   return proof == Proof::kFound;
@@ -283,8 +291,7 @@ bool nearest(const PointGrid& grid, const PixelNeighbours* pixels, const Vec3& q
 /// PointGrid::nearest.
 bool nearest(const PointGrid& grid, const PixelNeighbours* pixels, const Vec3& q, float max_distance, std::uint32_t& index,
              float& sq_dist) {
-  const Proof proof = pixels != nullptr && max_distance >= 0 ? pixels->nearest(q, max_distance * max_distance, index, sq_dist)
-                                                             : Proof::kUnknown;
+  const Proof proof = askPixels(pixels, q, squaredLimit(max_distance), index, sq_dist);
   return proof == Proof::kFound || (proof == Proof::kUnknown && grid.nearest(q, max_distance, index, sq_dist));
 }
 
