@@ -329,6 +329,15 @@ int runOne(const Options& o) {
             {"angle_deg", rep.mean_angle_deg},
             {"peak_rss_mib", static_cast<double>(usage.ru_maxrss) / 1024.0},
             {"peak_above_input_mib", static_cast<double>(std::max(0L, usage.ru_maxrss - baseline)) / 1024.0}};
+  // The first run's poses (model -> scan, row-major 3x4, mm): two builds' detections compared row for row.
+  json poses = json::array();
+  for (const Pose& pose : r.poses) {
+    json row = json::array();
+    for (int i = 0; i < 3; ++i)
+      for (int k = 0; k < 4; ++k) row.push_back(pose.matrix()(i, k));
+    poses.push_back(row);
+  }
+  j["poses"] = poses;
   if (!r.stages.empty()) {  // binpose's stages, each the median over the runs
     const auto stage = [&](double DetectionTiming::*field) {
       std::vector<double> v;

@@ -2,13 +2,13 @@
 // Online recognition (thesis chapters 4-5): scan -> preprocess -> sub-groups -> votes ->
 // correspondences -> clique -> pose -> detections, removing each found object's points.
 #include <binpose/cyclic_symmetry.hpp>
-#include <binpose/point_grid.hpp>
 #include <binpose/model_database.hpp>
 #include <binpose/params.hpp>
 #include <binpose/pose.hpp>
 #include <binpose/refine.hpp>
 #include <binpose/symmetry.hpp>
 
+#include <memory>
 #include <optional>
 #include <vector>
 
@@ -48,10 +48,14 @@ struct Hypothesis {
   std::vector<std::uint32_t> support;  ///< sorted, distinct scan point indices
 };
 
+class ModelShape;
+
 class Detector {
  public:
   /// `params` in absolute units (see scaledToModel); validated here.
   Detector(const ModelDatabase& db, const DetectionParams& params);
+  ~Detector();
+  Detector(Detector&&) noexcept;
 
   /// Every instance of the model in the scan. An empty scan gives no detection.
   [[nodiscard]] DetectionResult detect(const PointCloud& scan) const;
@@ -63,36 +67,17 @@ class Detector {
   [[nodiscard]] const CyclicSymmetry* cyclicSymmetry() const { return cyclic_ ? &*cyclic_ : nullptr; }
 
  private:
-  /// True when over half of the model's points (the ICP share of them), posed by `a`, lie
-  /// within 0.1 diameter of the model posed by `b`.
-  [[nodiscard]] bool mostlyOverlaps(const Pose& a, const Pose& b) const;
-  /// True when poses `a` and `b` put the model in nearly the same place: the centroids within 0.1
-  /// diameter of each other, and the turn between them moving no point of the model (within
-  /// model_radius_ of the centroid) by more than that; for a body of revolution, the turn of its
-  /// axis only. A near-symmetric flip of a part is another pose, not the same. `share` scales
-  /// that 0.1 diameter (tried_share's closer match).
-  [[nodiscard]] bool samePose(const Pose& a, const Pose& b, float share = 1.0f) const;
-  /// True when x (in the model's frame) lies within `distance` of a model point. A point that
-  /// far outside the model's bounding box is answered without a grid query.
-  [[nodiscard]] bool nearModel(const Vec3& x, float distance) const;
-  /// Best first, keeps a detection unless it is another pose of an object already kept: over a
-  /// quarter of its supporting scan points are claimed (each scan point belongs to one object),
-  /// or a twentieth are and its model mostly overlaps a kept one's (a near-symmetric flip, say).
-  [[nodiscard]] std::vector<Detection> suppressDuplicates(std::vector<Hypothesis> hypotheses, std::size_t scan_size) const;
+  /// What the votes go to: a body of revolution's orbits or a cyclic symmetry's classes (null: model points).
+  [[nodiscard]] const Orbits* votingOrbits() const { return orbits_ ? &*orbits_ : classes_ ? &*classes_ : nullptr; }
 
   const ModelDatabase& db_;
   DetectionParams params_;
-  PointGrid model_grid_;  ///< the model points, cells of sigma_dist: nearModel's queries
-  PreparedModel icp_model_;  ///< the model points ICP pairs up (icp_model_points of them)
+  PreparedModel icp_model_;     ///< the model points ICP pairs up (icp_model_points of them)
   PreparedModel scored_model_;  ///< all the model points, for the score
-  Vec3 model_centroid_;
-  float model_radius_ = 0;  ///< largest distance of a model point from the centroid
-  Vec3 model_lo_, model_hi_;  ///< the model points' bounding box
   std::optional<Orbits> orbits_;
   std::optional<CyclicSymmetry> cyclic_;
   std::optional<Orbits> classes_;  ///< cyclic_'s classes of images
-  /// What the votes go to: orbits_ or classes_ (null: model points).
-  [[nodiscard]] const Orbits* votingOrbits() const { return orbits_ ? &*orbits_ : classes_ ? &*classes_ : nullptr; }
+  std::unique_ptr<const ModelShape> shape_;  ///< removal, same-pose and overlap tests
 };
 
 }  // namespace binpose

@@ -1,0 +1,25 @@
+#pragma once
+// Local votes (binpose's default): each scene point votes once, with its neighbours within
+// vote_radius, and every sub-group holding it reuses its candidates (voting.hpp).
+#include <binpose/model_database.hpp>
+#include <binpose/params.hpp>
+#include <binpose/scene.hpp>
+#include <binpose/voting.hpp>
+
+#include <memory>
+#include <vector>
+
+namespace binpose {
+
+struct LocalVotes {
+  std::unique_ptr<NeighbourhoodVoter> voter;  ///< null when local_votes is off
+  std::vector<char> may_vote;                 ///< per scene point: a reference point of voter_spacing
+  double setup_ms = 0;                        ///< time to set them up
+};
+
+/// The voter over the scene (partners one per partner_spacing cube) and the reference points
+/// (one per voter_spacing cube; all without it). Empty when local_votes is off.
+LocalVotes makeLocalVotes(const ModelDatabase& db, const PreparedScene& scene, const DetectionParams& p,
+                          std::uint32_t max_list, const Orbits* voting_orbits);
+
+}  // namespace binpose

@@ -1,0 +1,199 @@
+// One sub-group: votes, clique, pose (thesis 4.3-4.6, 5.2.5), then pre-screen, ICP and score.
+#include "subgroup_matcher.hpp"
+
+#include <binpose/clique.hpp>
+#include <binpose/pose.hpp>
+
+#include <algorithm>
+#include <chrono>
+
+namespace binpose {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+
+void reset(GroupOutcome& out, bool all_voters) {
+  out.members.clear();
+  out.clique.clear();
+  out.poses.clear();
+  out.ran = out.screened_out = out.pending = out.refound = out.held = false;
+  out.path.clear();
+  out.all_voters = all_voters;
+  out.largest_clique = 0;
+  out.hypothesis = {};
+  out.score_without_grazing = 0;
+  out.vote_ms = out.match_ms = out.refine_ms = 0;
+}
+
+}  // namespace
+
+int candidatesPerPoint(const DetectionParams& p, const Orbits* orbits) {
+  return orbits != nullptr ? std::min(p.candidates_per_point, p.revolution_candidates) : p.candidates_per_point;
+}
+
+bool Matcher::prepare(std::span<const std::uint32_t> group, const std::vector<char>& removed, Slot& s, bool all_voters,
+                      const GroupOutcome* earlier, ParallelVoter* parallel,
+                      const std::function<bool(const GroupOutcome&)>& hold) const {
+  GroupOutcome& out = s.outcome;
+  reset(out, all_voters);
+  for (const auto i : group)
+    if (!removed[i]) out.members.push_back(i);
+  if (out.members.size() < static_cast<std::size_t>(p.C_n)) return false;
+  out.ran = true;
+  const auto t_vote = Clock::now();
+  if (!collectVotes(s, all_voters, parallel)) return false;
+  const auto t_match = Clock::now();
+  out.vote_ms = msSince(t_vote);
+  if (hold && hold(out)) {  // its clique waits until the outcome is taken
+    out.held = true;
+    return false;
+  }
+  const bool matched = match(s);
+  out.match_ms = msSince(t_match);
+  if (!matched) return false;
+  if (p.verify && std::any_of(out.poses.begin(), out.poses.end(), seen)) return false;  // still seen when taken
+  if (earlier != nullptr && !earlier->pending && earlier->clique == out.clique) {
+    out.screened_out = earlier->screened_out;
+    out.hypothesis = earlier->hypothesis;
+    out.score_without_grazing = earlier->score_without_grazing;
+    out.path = earlier->path;
+    out.refound = earlier->refound;
+    return false;
+  }
+  out.pending = true;
+  return true;
+}
+
+void Matcher::verify(Slot& s) const {
+  const auto t_refine = Clock::now();
+  screenRefineScore(s);
+  s.outcome.pending = false;
+  s.outcome.refine_ms = msSince(t_refine);
+}
+
+bool Matcher::collectVotes(Slot& s, bool all_voters, ParallelVoter* parallel) const {
+  const GroupOutcome& out = s.outcome;
+  s.candidates.clear();
+  if (local == nullptr) {  // 4.3: the sub-group's points vote among themselves
+    if (parallel != nullptr) parallel->vote(scene.points, scene.normals, out.members, s.candidates);  // the same pairs
+    else s.voter.vote(scene.points, scene.normals, out.members, s.candidates);
+    return true;
+  }
+  // The second pass (retry_all_voters): nothing new when the other points have no candidate.
+  if (all_voters && std::none_of(out.members.begin(), out.members.end(),
+                                 [&](std::uint32_t i) { return may_vote[i] == 0 && !local->candidates(i).empty(); }))
+    return false;
+  for (const auto i : out.members)
+    if (all_voters || may_vote[i] != 0)  // the others' votes, if any, are for the second pass
+      for (const auto m : local->candidates(i)) s.candidates.push_back({i, m});
+  return true;
+}
+
+bool Matcher::match(Slot& s) const {
+  if (s.candidates.size() < static_cast<std::size_t>(p.C_n)) return false;
+  Graph graph = orbits != nullptr
+                    ? revolutionConsistencyGraph(s.candidates, scene.points, scene.normals, *orbits, p.e_gmax,
+                                                 p.revolution_angle_tolerance)
+                : cyclic != nullptr
+                    ? cyclicConsistencyGraph(s.candidates, scene.points, scene.normals, db.model(), *cyclic, p.e_gmax,
+                                             p.revolution_angle_tolerance)
+                    : consistencyGraph(s.candidates, scene.points, db.model().points, p.e_gmax);
+  for (int retry = 0;; ++retry) {
+    const CliqueResult clique = maximumClique(graph, p.clique_work_limit);
+    if (retry == 0) s.outcome.largest_clique = static_cast<int>(clique.vertices.size());
+    if (clique.vertices.size() < static_cast<std::size_t>(p.C_n)) return false;
+    if (fitClique(s, clique)) return true;
+    // A mirror image (or a degenerate set): the next largest clique without its pairs.
+    if (orbits != nullptr || retry >= p.mirror_retries) return false;
+    graph.isolate(clique.vertices);
+  }
+}
+
+bool Matcher::fitClique(Slot& s, const CliqueResult& clique) const {
+  const Points& model = db.model().points;
+  s.clique_scene.clear();
+  for (const int v : clique.vertices) s.clique_scene.push_back(scene.points[s.candidates[v].scene]);
+  PoseFit fit;
+  std::vector<PoseFit> fits;  // a body of revolution's: the first, then the other axis sign, if any
+  if (orbits != nullptr) {  // the axis of the clique's orbits; the other axis sign, if any, kept for the scan
+    s.clique_normals.clear();
+    s.clique_ids.clear();
+    for (const int v : clique.vertices) {
+      s.clique_normals.push_back(scene.normals[s.candidates[v].scene]);
+      s.clique_ids.push_back(s.candidates[v].model);
+    }
+    fits = solveRevolutionPoses(*orbits, s.clique_ids, model, s.clique_scene, s.clique_normals);
+    if (!fits.empty()) fit = fits.front();
+  } else {
+    s.clique_model.clear();
+    for (const int v : clique.vertices) s.clique_model.push_back(model[s.candidates[v].model]);
+    fit = cyclic != nullptr ? solveCyclicPose(*cyclic, s.clique_model, s.clique_scene) : solvePose(s.clique_model, s.clique_scene);
+  }
+  if (!fit.ok) return false;
+  for (const int v : clique.vertices) s.outcome.clique.push_back(s.candidates[v]);
+  s.outcome.poses.push_back(fit.pose);
+  for (std::size_t f = 1; f < fits.size(); ++f) s.outcome.poses.push_back(fits[f].pose);
+  s.outcome.hypothesis.detection = Detection{fit.pose, 0.0f, static_cast<int>(clique.vertices.size()), fit.rms};
+  return true;
+}
+
+float Matcher::prescore(const Pose& pose, bool second_pass) const {
+  const Evidence e = evidence.evaluate(pose, icp_model, p.icp_max_distance, 0.0f);
+  return second_pass ? e.scoreWithoutGrazing() : e.score();
+}
+
+bool Matcher::prescreen(Slot& s) const {
+  Detection& det = s.outcome.hypothesis.detection;
+  // A pose of the second pass (retry_all_voters) is screened as it will be judged: by its score
+  // without grazing points, against retry_min_score.
+  const bool second_pass = s.outcome.all_voters;
+  const float gate = second_pass ? std::max(p.min_score, p.retry_min_score) : p.min_score;
+  const auto alternatives = std::span<const Pose>(s.outcome.poses).subspan(1);
+  float best = p.prescreen || !alternatives.empty() ? prescore(det.pose, second_pass) : 1.0f;
+  for (const Pose& other : alternatives)
+    if (const float score = prescore(other, second_pass); score > best) {
+      best = score;
+      det.pose = other;
+    }
+  if (!p.prescreen || best >= gate) return true;
+  if (p.prescreen_retry_steps > 0 && best >= p.prescreen_retry_share * gate) {
+    // Near the scan but a few mm off: a few coarse ICP steps, and another look.
+    const IcpParams nudge{p.prescreen_retry_steps, p.icp_max_distance, p.verify_tolerance, p.viewpoint, {}, nullptr, pixels};
+    const Pose moved = refinePose(det.pose, icp_model, scan.points, scan_grid, nudge);
+    if (prescore(moved, second_pass) >= gate) {
+      det.pose = moved;
+      return true;
+    }
+  }
+  return false;  // far from the scan even at the ICP gate: not worth refining
+}
+
+void Matcher::screenRefineScore(Slot& s) const {
+  Hypothesis& h = s.outcome.hypothesis;
+  Detection& det = h.detection;
+  if (p.verify && !prescreen(s)) {
+    s.outcome.screened_out = true;
+    return;
+  }
+  if (p.refine) {
+    const bool stop_at_found = p.verify && p.refound_share > 0;  // see takeOutcome (group_schedule.cpp)
+    IcpParams icp{p.icp_iterations, p.icp_max_distance, p.verify_tolerance, p.viewpoint, {}, nullptr, pixels};
+    if (stop_at_found) {
+      icp.path = &s.outcome.path;
+      icp.stop = found;
+    }
+    det.pose = refinePose(det.pose, icp_model, scan.points, scan_grid, icp);
+    if (stop_at_found && found(det.pose)) {
+      s.outcome.refound = true;
+      return;
+    }
+  }
+  const Evidence e = evidence.evaluate(det.pose, scored_model, p.verify_tolerance, db.model().sample_radius, &h.support);
+  det.score = e.score();
+  s.outcome.score_without_grazing = e.scoreWithoutGrazing();
+  std::sort(h.support.begin(), h.support.end());
+  h.support.erase(std::unique(h.support.begin(), h.support.end()), h.support.end());
+}
+
+}  // namespace binpose

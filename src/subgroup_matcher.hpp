@@ -1,0 +1,109 @@
+#pragma once
+// One sub-group through the thesis's steps (5.2.3-5.2.5): votes (4.3-4.4), the largest
+// consistent clique (4.5), Horn's pose (4.6), then verification: pre-screen, ICP and score.
+#include "model_shape.hpp"
+
+#include <binpose/detector.hpp>
+#include <binpose/pixel_neighbours.hpp>
+#include <binpose/refine.hpp>
+#include <binpose/scene.hpp>
+#include <binpose/voting.hpp>
+
+#include <functional>
+#include <span>
+#include <vector>
+
+namespace binpose {
+
+/// What one sub-group gave on the scene as it stood when it ran. Sub-groups run side by side in
+/// batches and are taken in their order afterwards (group_schedule.hpp).
+struct GroupOutcome {
+  std::vector<std::uint32_t> members;      ///< its points not removed when it ran
+  bool ran = false;                        ///< enough members to vote
+  std::vector<Correspondence> clique;      ///< the clique's pairs (empty: no pose)
+  std::vector<Pose> poses;                 ///< the clique's closed-form pose, then its alternatives
+                                           ///< (a body of revolution's other axis sign)
+  bool screened_out = false;               ///< the pose failed the pre-screen
+  bool pending = false;                    ///< a pose not seen when it ran, not verified yet (Matcher::verify)
+  bool held = false;                       ///< its clique not searched yet (run when taken)
+  std::vector<Pose> path;                  ///< ICP's pose after each step
+  bool refound = false;                    ///< ICP came to an object already found (and stopped there)
+  bool all_voters = false;                 ///< every member's candidates taken, not only the voters'
+  int largest_clique = 0;                  ///< size of the first clique searched (0: none searched)
+  Hypothesis hypothesis;                   ///< refined and scored (when the clique gave a pose that passed)
+  float score_without_grazing = 0;         ///< the hypothesis's (Evidence::scoreWithoutGrazing)
+  double vote_ms = 0, match_ms = 0, refine_ms = 0;  ///< the thread's time in each stage
+};
+
+/// Candidates kept per scene point: a body of revolution's votes do not spread over rings.
+int candidatesPerPoint(const DetectionParams& p, const Orbits* orbits);
+
+/// The buffers and the outcome of one place in a batch (the outcome is kept until it is taken).
+struct Slot {
+  Slot(const ModelDatabase& db, const DetectionParams& p, std::uint32_t max_list, const Orbits* orbits)
+      : voter(db, candidatesPerPoint(p, orbits), max_list, p.candidate_spacing, p.weigh_rare_keys, orbits) {}
+  Voter voter;
+  std::vector<Correspondence> candidates;
+  Points clique_model, clique_scene, clique_normals;
+  std::vector<std::uint32_t> clique_ids;
+  GroupOutcome outcome;
+};
+
+/// Everything a sub-group reads (nothing it writes is shared).
+struct Matcher {
+  const ModelDatabase& db;
+  const DetectionParams& p;
+  const PreparedModel& icp_model;   ///< ICP's share of the model points
+  const PreparedModel& scored_model;  ///< all of them, for the score
+  const PreparedScene& scene;
+  const PointCloud& scan;
+  const PointGrid& scan_grid;
+  const PixelNeighbours* pixels;    ///< the scan's, for ICP's searches (null: the grid alone)
+  const SceneEvidence& evidence;
+  const NeighbourhoodVoter* local;  ///< the local votes (null: each sub-group votes, 4.3)
+  const std::vector<char>& may_vote;  ///< with local votes, the points of voter_spacing
+  const Orbits* orbits;             ///< a body of revolution's (null: matched point to point)
+  const CyclicSymmetry* cyclic;     ///< a part of n-fold symmetry's (candidates: class members)
+  /// True when a pose is another of an object already found (explain_score), or close to a
+  /// clique pose already verified (tried_share): its clique is not verified again.
+  std::function<bool(const Pose&)> seen;
+  /// True when a pose is another of an object already found: ICP stops there (refound).
+  std::function<bool(const Pose&)> found;
+
+  /// prepare(), then verify() when it asks for it.
+  void run(std::span<const std::uint32_t> group, const std::vector<char>& removed, Slot& s, bool all_voters,
+           const GroupOutcome* earlier = nullptr, ParallelVoter* parallel = nullptr) const {
+    if (prepare(group, removed, s, all_voters, earlier, parallel)) verify(s);
+  }
+
+  /// Votes, clique and pose of one sub-group with the scene points not yet `removed`; true when
+  /// its pose is to be verified (the outcome is then `pending`). A clique whose pose (or one of
+  /// its alternatives) is seen() is not verified. The pose, ICP and score depend on the clique's
+  /// pairs alone: when `earlier` (a run of the same sub-group with more points) verified the
+  /// same clique, its verdict is taken instead. `parallel`: votes with it instead of the slot's
+  /// voter, on all cores. `all_voters`: with local votes, the candidates of every member, not
+  /// only of the voters of voter_spacing. `hold`: true when the clique search is to wait.
+  bool prepare(std::span<const std::uint32_t> group, const std::vector<char>& removed, Slot& s, bool all_voters,
+               const GroupOutcome* earlier = nullptr, ParallelVoter* parallel = nullptr,
+               const std::function<bool(const GroupOutcome&)>& hold = {}) const;
+
+  /// Pre-screen, ICP and score of a pending outcome's pose.
+  void verify(Slot& s) const;
+
+ private:
+  /// The candidate correspondences of the outcome's members; false when a second pass has nothing new.
+  bool collectVotes(Slot& s, bool all_voters, ParallelVoter* parallel) const;
+  /// Clique and closed-form pose (a refused mirror-image clique gives way to the next, up to
+  /// mirror_retries times); false when there is none. The pose goes into the outcome.
+  bool match(Slot& s) const;
+  /// The closed-form pose of a clique's pairs into the outcome; false when there is none.
+  bool fitClique(Slot& s, const CliqueResult& clique) const;
+  /// The pose's score at the ICP gate on ICP's points (a second pass's: without grazing points).
+  float prescore(const Pose& pose, bool second_pass) const;
+  /// The scan decides between a clique's poses, and screens out one far from it; false when screened out.
+  bool prescreen(Slot& s) const;
+  /// Pre-screen, ICP and score of the outcome's pose.
+  void screenRefineScore(Slot& s) const;
+};
+
+}  // namespace binpose
