@@ -109,7 +109,7 @@ void addDetect(CLI::App& app, DetectOptions& o) {
   d->add_option("--render", o.render, "Draw the scan with the detections, ranked, into this PNG");
   d->add_option("--export-ply", o.export_ply, "Write the scan and the posed models (coloured) into this PLY");
   d->add_option("--max-instances", o.max_instances, "Stop after N detections (0: no limit)");
-  d->add_option("--preset", o.preset, "Parameter preset: default, fast (local votes), or thesis (chapter 5 as written)")
+  d->add_option("--preset", o.preset, "Parameter preset: default, or thesis (chapter 5 as written); fast: an alias of default")
       ->check(CLI::IsMember({"default", "fast", "thesis"}))->capture_default_str();
   d->add_option("--params", o.params_file, "JSON file of parameters (absolute units, mm), applied after the preset");
   d->add_option("--units", o.units, "Length unit of the scene file: mm or m")->check(CLI::IsMember({"mm", "m"}))->capture_default_str();
@@ -137,6 +137,8 @@ void addDetect(CLI::App& app, DetectOptions& o) {
 
 /// Preset, scaled to the model, then the JSON file, then the options given on the command line.
 binpose::DetectionParams detectParams(const DetectOptions& o, float diameter, const binpose::PointCloud& scan) {
+  if (o.preset == "fast")
+    fmt::print(stderr, "note: --preset fast is now the default preset; the name 'fast' will be removed in a later release\n");
   binpose::DetectionParams p = binpose::scaledToModel(binpose::presetByName(o.preset), diameter);
   p.viewpoint = scan.viewpoint;
   if (!o.params_file.empty()) binpose::applyJsonFile(p, o.params_file);
@@ -408,7 +410,7 @@ struct SweepOptions {
 void addSweep(CLI::App& app, SweepOptions& o) {
   CLI::App* w = app.add_subcommand("sweep", "Sweep parameters over simulated bins: CSV and the thesis's plots (Tables 1-7)");
   w->add_option("--model", o.settings.model, "Mesh or builtin:NAME")->capture_default_str();
-  w->add_option("--preset", o.settings.preset, "default, fast or thesis")->check(CLI::IsMember({"default", "fast", "thesis"}))->capture_default_str();
+  w->add_option("--preset", o.settings.preset, "default or thesis (fast: an alias of default)")->check(CLI::IsMember({"default", "fast", "thesis"}))->capture_default_str();
   w->add_option("--scenes", o.settings.scenes, "Simulated bins")->capture_default_str();
   w->add_option("--instances", o.settings.instances, "Parts per bin")->capture_default_str();
   w->add_option("--seed", o.settings.seed, "Seed of the first bin")->capture_default_str();

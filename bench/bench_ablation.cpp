@@ -57,10 +57,10 @@ int main(int argc, char** argv) {
   variants.push_back({"thesis + voxel + verify", p});
   p.refine = true;
   variants.push_back({"thesis + voxel + verify + ICP", p});
-  variants.push_back({"default (+ removal only if score >= 0.8)", defaultPreset()});
+  variants.push_back({"default (local votes, planes, symmetry, ...)", defaultPreset()});
   p = defaultPreset();
-  p.candidates_per_point = 8;
-  variants.push_back({"default + 8 candidates per point", p});
+  p.retry_all_voters = false;
+  variants.push_back({"default without the second pass", p});
 
   std::printf("model %s, %.1f mm; %d scenes x %d copies\n", argv[1], model.diameter, scenes, copies);
   std::printf("%-40s %7s %6s %9s %9s %9s\n", "variant", "recall", "false", "cent mm", "angle deg", "ms/scene");

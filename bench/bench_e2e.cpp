@@ -75,7 +75,7 @@ struct Options {
   std::string data = "../shared/data", cache = "out/bench", out = "bench/results.json";
   int repeats = 5;
   int timeout_s = 1800;  ///< per input and method
-  std::vector<std::string> inputs, methods = {"binpose", "binpose-fast", "binpose-thesis", "opencv-sample", "opencv-tuned"};
+  std::vector<std::string> inputs, methods = {"binpose", "binpose-thesis", "opencv-sample", "opencv-tuned"};
   /// Added to every simulated bin's seed: other bins of the same kinds (their own cache folders),
   /// to check that what a preset gains on the fixed bins is not fitted to them.
   std::uint64_t seed_offset = 0;

@@ -182,25 +182,25 @@ BENCHMARK_TEMPLATE(BM_VoteSubGroup, ParallelVoter)->Unit(benchmark::kMillisecond
 
 void BM_LocalVotes(benchmark::State& state) {  // the fast preset's local votes, every sampled point voting once
   const Fixture& f = fixture();
-  const DetectionParams p = scaledToModel(presetByName("fast"), f.model.diameter);
+  const DetectionParams p = scaledToModel(defaultPreset(), f.model.diameter);
   std::vector<std::uint32_t> all(f.scene.points.size());
   std::iota(all.begin(), all.end(), 0u);
   for (auto _ : state) {  // as the detector does it: partners thinned, candidates spaced
     const auto partners = voxelSubsample(f.scene.points, p.partner_spacing);
-    NeighbourhoodVoter voter(f.db, f.scene.points, f.scene.normals, p.vote_radius, p.candidates_per_point, UINT32_MAX,
-                             partners, p.candidate_spacing);
+    NeighbourhoodVoter voter(f.db, f.scene.points, f.scene.normals, p.vote_radius, p.candidates_per_point, partners,
+                             p.candidate_spacing);
     voter.vote(all);
     benchmark::DoNotOptimize(voter.release());
   }
 }
 BENCHMARK(BM_LocalVotes)->Unit(benchmark::kMillisecond)->UseRealTime();
 
-void BM_ConsistencyGraph(benchmark::State& state) {  // 4.5, eq. 13-16, on the fast preset's candidates of the median sub-group
+void BM_ConsistencyGraph(benchmark::State& state) {  // 4.5, eq. 13-16, on the default preset's candidates of the median sub-group
   const Fixture& f = fixture();
-  const DetectionParams p = scaledToModel(presetByName("fast"), f.model.diameter);
+  const DetectionParams p = scaledToModel(defaultPreset(), f.model.diameter);
   const auto partners = voxelSubsample(f.scene.points, p.partner_spacing);
-  NeighbourhoodVoter voter(f.db, f.scene.points, f.scene.normals, p.vote_radius, p.candidates_per_point, UINT32_MAX,
-                           partners, p.candidate_spacing);
+  NeighbourhoodVoter voter(f.db, f.scene.points, f.scene.normals, p.vote_radius, p.candidates_per_point, partners,
+                           p.candidate_spacing);
   voter.vote(f.medianGroup());
   std::vector<Correspondence> cps;
   for (const auto i : f.medianGroup())

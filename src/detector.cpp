@@ -82,11 +82,10 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   PreparedScan prepared;  // 5.2.1-5.2.2: sub-sampled, oriented, the bin's planes apart
   prepareScan(scan, p, prepared);
   const PreparedScene& scene = prepared.scene;
-  const auto max_list = static_cast<std::uint32_t>(p.max_key_share * static_cast<float>(db_.model().points.size()));
   std::vector<std::vector<std::uint32_t>> groups;  // 5.2.3-5.2.4, beside the local voters' set-up
   LocalVotes local;
   tbb::parallel_invoke([&] { groups = makeSubGroups(scene.points, p.eta, p.r, static_cast<std::size_t>(p.C_n)); },
-                       [&] { local = makeLocalVotes(db_, scene, p, max_list, votingOrbits()); });
+                       [&] { local = makeLocalVotes(db_, scene, p, votingOrbits()); });
   result.timing.preprocess_ms = msSince(t0) - local.setup_ms;  // the voters' set-up counts as voting
 
   const auto t_match = Clock::now();  // 5.2.5-5.2.6: votes, clique, pose, verification, removal
@@ -95,7 +94,7 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
                         *prepared.evidence, local.voter.get(), local.may_vote, orbits(), cyclicSymmetry(),
                         [&](const Pose& pose) { return state.seen(pose, *shape_, p.tried_share); },
                         [&](const Pose& pose) { return state.refoundAt(pose, *shape_, p.refound_share); }};
-  GroupSchedule schedule(db_, p, *shape_, matcher, groups, local.voter.get(), local.may_vote, max_list, votingOrbits(), state);
+  GroupSchedule schedule(db_, p, *shape_, matcher, groups, local.voter.get(), local.may_vote, votingOrbits(), state);
   std::vector<std::uint32_t> order(groups.size());
   std::iota(order.begin(), order.end(), 0u);
   schedule.run(order, false);

@@ -61,14 +61,13 @@ bool MatchState::refoundAt(const Pose& pose, const ModelShape& shape, float refo
 
 GroupSchedule::GroupSchedule(const ModelDatabase& db, const DetectionParams& p, const ModelShape& shape, const Matcher& matcher,
                              const std::vector<std::vector<std::uint32_t>>& groups, NeighbourhoodVoter* local,
-                             const std::vector<char>& may_vote, std::uint32_t max_list, const Orbits* voting_orbits,
-                             MatchState& state)
+                             const std::vector<char>& may_vote, const Orbits* voting_orbits, MatchState& state)
     : p_(p), shape_(shape), matcher_(matcher), groups_(groups), local_(local), may_vote_(may_vote), state_(state),
       threads_(workerThreads()),
-      parallel_(db, candidatesPerPoint(p, voting_orbits), max_list, p.candidate_spacing, p.weigh_rare_keys, voting_orbits),
+      parallel_(db, candidatesPerPoint(p, voting_orbits), p.candidate_spacing, voting_orbits),
       largest_clique_(groups.size(), 0) {
   const std::size_t batch = kGroupsPerThread * std::max<std::size_t>(1, threads_);
-  for (std::size_t k = 0; k < batch; ++k) slots_.emplace_back(db, p, max_list, voting_orbits);
+  for (std::size_t k = 0; k < batch; ++k) slots_.emplace_back(db, p, voting_orbits);
   prepared_.reset(new std::atomic<bool>[batch]);
 }
 

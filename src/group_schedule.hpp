@@ -40,7 +40,7 @@ class GroupSchedule {
   /// `voting_orbits`: what the votes go to (orbits or a cyclic symmetry's classes; null: points).
   GroupSchedule(const ModelDatabase& db, const DetectionParams& p, const ModelShape& shape, const Matcher& matcher,
                 const std::vector<std::vector<std::uint32_t>>& groups, NeighbourhoodVoter* local,
-                const std::vector<char>& may_vote, std::uint32_t max_list, const Orbits* voting_orbits, MatchState& state);
+                const std::vector<char>& may_vote, const Orbits* voting_orbits, MatchState& state);
 
   /// The sub-groups `order` (indices into the groups), a batch at a time; `all_voters`: the
   /// second pass, every point's candidates taken.

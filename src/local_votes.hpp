@@ -20,6 +20,6 @@ struct LocalVotes {
 /// The voter over the scene (partners one per partner_spacing cube) and the reference points
 /// (one per voter_spacing cube; all without it). Empty when local_votes is off.
 LocalVotes makeLocalVotes(const ModelDatabase& db, const PreparedScene& scene, const DetectionParams& p,
-                          std::uint32_t max_list, const Orbits* voting_orbits);
+                          const Orbits* voting_orbits);
 
 }  // namespace binpose

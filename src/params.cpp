@@ -42,8 +42,6 @@ void visit(json& j, DetectionParams& p, bool write) {
   field(j, "retry_min_clique", p.retry_min_clique, write);
   field(j, "retry_min_score", p.retry_min_score, write);
   field(j, "grazing_angle", p.grazing_angle, write);
-  field(j, "max_key_share", p.max_key_share, write);
-  field(j, "weigh_rare_keys", p.weigh_rare_keys, write);
   field(j, "use_revolution", p.use_revolution, write);
   field(j, "revolution_angle_tolerance", p.revolution_angle_tolerance, write);
   field(j, "revolution_candidates", p.revolution_candidates, write);
@@ -96,74 +94,32 @@ void nonNegative(float v, const char* name, const char* unit) {
 DetectionParams thesisPreset() {
   DetectionParams p;
   p.subsampling = Subsampling::Random;
-  p.refine = false;
-  p.verify = false;
-  p.removal_score = 0.0f;
-  p.candidates_per_point = 1;
-  p.local_votes = false;
-  p.max_key_share = 1.0f;
-  p.prescreen = false;
+  p.k_normals = 6;
   p.remove_planes = false;
-  p.use_revolution = false;
+  p.candidates_per_point = 1;
+  p.candidate_spacing = 0.0f;
+  p.local_votes = false;
+  p.voter_spacing = 0.0f;
+  p.partner_spacing = 0.0f;
+  p.retry_all_voters = false;
+  p.C_n = 8;
   p.mirror_retries = 0;
+  p.use_revolution = false;
   p.use_cyclic_symmetry = false;
+  p.verify = false;
+  p.prescreen = false;
+  p.prescreen_retry_steps = 0;
+  p.refine = false;
+  p.removal_score = 0.0f;
   return p;
 }
 
 DetectionParams defaultPreset() { return DetectionParams{}; }
 
-DetectionParams fastPreset() {
-  DetectionParams p;
-  p.local_votes = true;
-  // Measured on the bench bins (bench_e2e --methods binpose-fast --params, one run each):
-  // partners every 8 mm cut the accumulator increments about 3x at the same recall; 12
-  // candidates instead of 8 then found 70 parts of the six bins' 144 instead of 64, and 12
-  // candidates at least 2.7 mm apart (twice the model's sample radius) 74.
-  p.partner_spacing = 8.0f;
-  p.candidates_per_point = 12;
-  p.candidate_spacing = 2.7f;
-  // Checked on 18 bins (the six above and the same kinds with --seed-offset 1000 and 2000; one
-  // run each) and the two real scans: only one point per 5 mm cube voting (about half of them),
-  // cliques of 6 instead of 8 and normals fit to 8 neighbours instead of 6 found 220 parts of
-  // the 18 bins in 1549 ms, against 210 in 2416 ms, and 81% of the more than half visible ones
-  // against 76%. With 6 neighbours the PCL milk scan's noisy normals gave 5 poses (1 right) in
-  // 235 ms, with 8 the one right pose in 130 ms; with 9-12 a copy of IPD obj 0 cut in half
-  // (tests/test_detector.cpp) came out flipped.
-  p.voter_spacing = 5.0f;
-  p.C_n = 6;
-  p.k_normals = 8;
-  // Scene points removed after a detection scoring 0.6, not 0.8: right poses of IPD obj 8 score
-  // 0.67-0.93 (its thin edges), and one under 0.8 left its points to be found again by up to 16
-  // more sub-groups, each refined. On the 18 bins the same 218 parts were found, 81% of the
-  // more than half visible ones (80% at 0.8), in 1105 ms against 1256 ms; ipd8-16 took 56 ms
-  // instead of 79, ipd0-16 39 instead of 50 (median of 15 runs), cap-16 the same. The two real
-  // scans gave the same poses.
-  p.removal_score = 0.6f;
-  // A pose the pre-screen would drop gets 2 coarse ICP steps and another look when it scores a
-  // third of min_score (params.hpp): 265 parts of the 18 bins instead of 264, the same 7 false,
-  // ipd8-16's fully visible copy 1 among them; 436 poses refined instead of 403.
-  p.prescreen_retry_steps = 2;
-  // Classes of a cyclic symmetry's images (params.hpp) on, as in the default preset, since their
-  // consistency graph runs on SIMD lanes: ipd8-16 45.5 ms against 43.0 without (warm medians of
-  // 11; 52.5 against 45.7 with the graph's scalar loop over the turns). On ten IPD obj 8 bins
-  // (bench_e2e --seed-offset 0, 1000, 2000, 3000 and 4000, one run each) they found 176 parts
-  // against 167, and missed 3 of the more than half visible ones against 5.
-  p.use_cyclic_symmetry = true;
-  // A second pass over the sub-groups whose largest clique was 3-5, every point voting, its
-  // poses held to 0.4 without grazing points (params.hpp): on the 18 bins 284 parts instead of
-  // 280, the same 8 false, 238 of the 245 more than half visible instead of 236 (ipd8-16's
-  // copy 5 and seed 2105's copy 7, both gears lying flat); the real scans gave the same poses.
-  // It costs 8-14% more instructions on the 16-part bins (callgrind, one thread: cap-16 +8.1%,
-  // ipd0-16 +8.9%, ipd8-16 +13.5%).
-  p.retry_all_voters = true;
-  return p;
-}
-
 DetectionParams presetByName(const std::string& name) {
   if (name == "thesis") return thesisPreset();
-  if (name == "default") return defaultPreset();
-  if (name == "fast") return fastPreset();
-  throw Error(fmt::format("unknown preset '{}' (known: default, fast, thesis)", name));
+  if (name == "default" || name == "fast") return defaultPreset();
+  throw Error(fmt::format("unknown preset '{}' (known: default, thesis)", name));
 }
 
 DetectionParams scaledToModel(const DetectionParams& params, float model_diameter) {
@@ -219,7 +175,6 @@ void validate(const DetectionParams& p) {
     throw Error(fmt::format("prescreen_retry_share must lie in [0, 1], got {}", p.prescreen_retry_share));
   if (p.candidates_per_point < 1 || p.candidates_per_point > 64)
     throw Error(fmt::format("candidates_per_point must lie in [1, 64], got {}", p.candidates_per_point));
-  if (!(p.max_key_share > 0 && p.max_key_share <= 1)) throw Error(fmt::format("max_key_share must lie in (0, 1], got {}", p.max_key_share));
   if (p.max_instances < 0) throw Error(fmt::format("max_instances must be >= 0, got {}", p.max_instances));
   if (p.clique_work_limit < 1) throw Error("clique_work_limit must be >= 1");
   if (p.mirror_retries < 0 || p.mirror_retries > 10)

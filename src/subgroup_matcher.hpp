@@ -40,8 +40,8 @@ int candidatesPerPoint(const DetectionParams& p, const Orbits* orbits);
 
 /// The buffers and the outcome of one place in a batch (the outcome is kept until it is taken).
 struct Slot {
-  Slot(const ModelDatabase& db, const DetectionParams& p, std::uint32_t max_list, const Orbits* orbits)
-      : voter(db, candidatesPerPoint(p, orbits), max_list, p.candidate_spacing, p.weigh_rare_keys, orbits) {}
+  Slot(const ModelDatabase& db, const DetectionParams& p, const Orbits* orbits)
+      : voter(db, candidatesPerPoint(p, orbits), p.candidate_spacing, orbits) {}
   Voter voter;
   std::vector<Correspondence> candidates;
   Points clique_model, clique_scene, clique_normals;

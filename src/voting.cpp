@@ -104,10 +104,6 @@ std::vector<std::size_t> selectCandidates(std::span<const std::uint32_t> values,
   return picked;
 }
 
-std::uint32_t keyWeight(std::size_t model_points, std::size_t list) {
-  return static_cast<std::uint32_t>(std::bit_width(model_points / std::max<std::size_t>(list, 1)));
-}
-
 namespace {
 
 /// Adds `times` to the counter of each model point in `ids` (16-bit counters, or bytes when the
@@ -480,8 +476,8 @@ void Voter::countDense(std::vector<Count>& counters) {
   dense_lists_.clear();
 }
 
-Voter::Voter(const ModelDatabase& db, int keep, std::uint32_t max_list, float spacing, bool weigh_rare, const Orbits* orbits)
-    : db_(db), keep_(keep), weigh_rare_(weigh_rare), max_list_(max_list), spacing_(spacing),
+Voter::Voter(const ModelDatabase& db, int keep, float spacing, const Orbits* orbits)
+    : db_(db), keep_(keep), spacing_(spacing),
       orbits_(orbits != nullptr && !orbits->cyclic ? orbits : nullptr),
       classes_(orbits != nullptr && orbits->cyclic ? orbits : nullptr) {
   if (orbits != nullptr && orbits->of.size() != db.model().points.size())
@@ -527,10 +523,6 @@ void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t
   featureKeys(points[k], normals[k], points, normals, partners, k, keys, keys_);
   groupKeys();
   lists_.clear();
-  // With weights, no 16-bit count can overflow: each feature adds at most 65535 / features.
-  const std::size_t n_model = db_.model().points.size();
-  const auto features = std::max<std::size_t>(1, keys_.size());
-  const auto most = static_cast<std::uint32_t>(weigh_rare_ ? std::max<std::size_t>(1, 65535 / features) : 1);
   std::uint64_t added = 0;  // the votes the lists add, all told: no count is larger
   // The keys' table entries are fetched kKeysAhead keys before they are read.
   constexpr std::size_t kKeysAhead = 16;
@@ -539,9 +531,8 @@ void Voter::votePoint(const Points& points, const Points& normals, std::uint32_t
     if (a + kKeysAhead < distinct_.size()) db_.prefetch(distinct_[a + kKeysAhead].key);
     const std::uint32_t key = distinct_[a].key;
     const auto ids = db_.lookup(key);
-    if (ids.empty() || ids.size() > max_list_) continue;  // a feature nearly every model point has: no information
-    const std::uint32_t weight = weigh_rare_ ? std::min(most, keyWeight(n_model, ids.size())) : 1;
-    const auto times = static_cast<std::uint16_t>(distinct_[a].count * weight);
+    if (ids.empty()) continue;
+    const auto times = static_cast<std::uint16_t>(distinct_[a].count);
     added += times;
     // The lists lie far apart in the table (which does not fit in the cache): each one's lines
     // are fetched as soon as it is known, some 60 keys before the lists are counted.
@@ -658,9 +649,8 @@ void Voter::vote(const Points& points, const Points& normals, std::span<const st
   for (const std::uint32_t k : group) votePoint(points, normals, k, group, out);
 }
 
-ParallelVoter::ParallelVoter(const ModelDatabase& db, int keep, std::uint32_t max_list, float spacing, bool weigh_rare,
-                             const Orbits* orbits)
-    : voters_([&db, keep, max_list, spacing, weigh_rare, orbits] { return Voter(db, keep, max_list, spacing, weigh_rare, orbits); }) {}
+ParallelVoter::ParallelVoter(const ModelDatabase& db, int keep, float spacing, const Orbits* orbits)
+    : voters_([&db, keep, spacing, orbits] { return Voter(db, keep, spacing, orbits); }) {}
 
 void ParallelVoter::vote(const Points& points, const Points& normals, std::span<const std::uint32_t> group,
                          std::vector<Correspondence>& out) {
@@ -685,8 +675,8 @@ struct NeighbourhoodVoter::Local {
 };
 
 NeighbourhoodVoter::NeighbourhoodVoter(const ModelDatabase& db, const Points& points, const Points& normals, float radius,
-                                       int keep, std::uint32_t max_list, std::span<const std::uint32_t> partners,
-                                       float spacing, bool weigh_rare, const Orbits* orbits)
+                                       int keep, std::span<const std::uint32_t> partners, float spacing,
+                                       const Orbits* orbits)
     : points_(points), normals_(normals), radius_(radius), voted_(points.size(), 0), candidates_(points.size()) {
   if (partners.empty()) {
     partners_.resize(points.size());
@@ -697,7 +687,7 @@ NeighbourhoodVoter::NeighbourhoodVoter(const ModelDatabase& db, const Points& po
   for (const auto o : partners_) partner_points_.push_back(points[o]);
   grid_ = std::make_unique<PointGrid>(partner_points_, 0.5f * radius);
   // Each thread's copy of this one (its own accumulator and buffers).
-  locals_ = std::make_unique<tbb::enumerable_thread_specific<Local>>(Local{Voter(db, keep, max_list, spacing, weigh_rare, orbits), {}, {}, {}});
+  locals_ = std::make_unique<tbb::enumerable_thread_specific<Local>>(Local{Voter(db, keep, spacing, orbits), {}, {}, {}});
 }
 
 NeighbourhoodVoter::~NeighbourhoodVoter() = default;
@@ -732,9 +722,9 @@ void NeighbourhoodVoter::vote(std::span<const std::uint32_t> voters) {
 
 std::vector<std::vector<std::uint32_t>> voteNeighbourhoods(const ModelDatabase& db, const Points& points,
                                                            const Points& normals, float radius, int keep,
-                                                           std::uint32_t max_list, std::span<const std::uint32_t> voters,
+                                                           std::span<const std::uint32_t> voters,
                                                            std::span<const std::uint32_t> partners) {
-  NeighbourhoodVoter voter(db, points, normals, radius, keep, max_list, partners);
+  NeighbourhoodVoter voter(db, points, normals, radius, keep, partners);
   std::vector<std::uint32_t> all;
   if (voters.empty()) {
     all.resize(points.size());

@@ -256,7 +256,7 @@ TEST(Clique, ConsistencyGraphFollowsEquations13To16) {
 }
 
 TEST(Clique, ConsistencyGraphOfCandidateRunsFollowsEquations13To16) {
-  // The fast preset's layout: each scene point's candidates side by side (runs of 1-12 pairs of
+  // The default preset's layout: each scene point's candidates side by side (runs of 1-12 pairs of
   // one scene point, across word boundaries), the first model point of each run the true one.
   Rng rng(31);
   Points model, scene;
@@ -503,20 +503,17 @@ TEST(Voting, LongListsHeldAsBitsetsHoldTheSamePoints) {
 
 TEST(Voting, BitsetCountingGivesTheSameCandidates) {
   // The whole part as one group (500 partners: a point has up to about 1600 long lists, added
-  // 255 at a time into 8 bit planes), with the fast preset's candidate rule, one vote per
-  // feature and rare keys weighing more (a long list then adds up to 6 votes at a time).
-  for (const bool weigh_rare : {false, true}) {
-    SCOPED_TRACE(weigh_rare ? "rare keys weigh more" : "one vote per feature");
-    const auto [points, normals, group] = wholePart(weigh_rare ? 22 : 21);
-    Voter by_bits(lDatabase(), 12, UINT32_MAX, 2.7f, weigh_rare), by_points(lDatabase(), 12, UINT32_MAX, 2.7f, weigh_rare);
-    by_points.useBitsets(false);
-    if (!by_bits.usesBitsets()) GTEST_SKIP() << "no AVX2 on this CPU: every list is counted point by point";
-    std::vector<Correspondence> a, b;
-    by_bits.vote(points, normals, group, a);
-    by_points.vote(points, normals, group, b);
-    ASSERT_GT(a.size(), group.size());
-    EXPECT_EQ(a, b);
-  }
+  // 255 at a time into 8 bit planes; equal keys add their count at once), with the default
+  // preset's candidate rule.
+  const auto [points, normals, group] = wholePart(21);
+  Voter by_bits(lDatabase(), 12, 2.7f), by_points(lDatabase(), 12, 2.7f);
+  by_points.useBitsets(false);
+  if (!by_bits.usesBitsets()) GTEST_SKIP() << "no AVX2 on this CPU: every list is counted point by point";
+  std::vector<Correspondence> a, b;
+  by_bits.vote(points, normals, group, a);
+  by_points.vote(points, normals, group, b);
+  ASSERT_GT(a.size(), group.size());
+  EXPECT_EQ(a, b);
 }
 
 TEST(Voting, VoterSelectsTheUpperOutliersOfItsCounts) {
@@ -567,7 +564,7 @@ TEST(Voting, CandidateSpacingKeepsTheBestAndSpreadsTheRest) {
   const auto [points, normals, group] = wholePart(9);
   constexpr float kSpacing = 5.0f;
   const Points& model = lDatabase().model().points;
-  Voter plain(lDatabase(), 6), spread(lDatabase(), 6, UINT32_MAX, kSpacing);
+  Voter plain(lDatabase(), 6), spread(lDatabase(), 6, kSpacing);
   int bunched = 0, checked = 0;
   for (std::uint32_t k = 0; k < points.size(); k += 7) {
     std::vector<Correspondence> a, b;
@@ -597,7 +594,7 @@ TEST(Voting, CandidateSpacingTakesTheOutliersBestFirst) {
   const Points& model = db.model().points;
   constexpr float kSpacing = 3.0f;
   constexpr int kKeep = 12;
-  Voter spread(db, kKeep, UINT32_MAX, kSpacing);
+  Voter spread(db, kKeep, kSpacing);
   int spaced_out = 0;
   for (std::uint32_t k = 0; k < points.size(); k += 5) {
     const std::vector<std::uint32_t> counts = countedVotes(db, part, k);
@@ -633,35 +630,4 @@ TEST(Voting, LocalVotesPointAtTheTrueModelPoints) {
   }
   EXPECT_GT(voted, static_cast<int>(points.size()) / 5);  // flat faces: many points have no outlier (eq. 11)
   EXPECT_GT(right, 3 * voted / 4) << right << " of " << voted << " candidates near the true model point";
-}
-
-TEST(Voting, KeyWeightIsTheBitLengthOfTheModelOverTheList) {
-  EXPECT_EQ(keyWeight(4000, 4000), 1u);  // every model point: one bit at most
-  EXPECT_EQ(keyWeight(4000, 2001), 1u);  // more than half
-  EXPECT_EQ(keyWeight(4000, 2000), 2u);  // 4000 / 2000 = 2 = 0b10
-  EXPECT_EQ(keyWeight(4000, 250), 5u);   // a sixteenth: 16 = 0b10000
-  EXPECT_EQ(keyWeight(4000, 1), 12u);    // 4000 < 2^12
-  EXPECT_EQ(keyWeight(4000, 0), 12u);    // an empty list is never counted; no division by zero
-}
-
-TEST(Voting, RareKeyWeightsPointAtTheTrueModelPoints) {
-  // The whole part as one group, each feature weighted by its key's rarity: the first candidate
-  // of most scene points lies at their true model point (scene point i is model point 3 i).
-  const auto [points, normals, group] = wholePart(13);
-  Voter plain(lDatabase(), 1), weighted(lDatabase(), 1, UINT32_MAX, 0.0f, true);
-  const Points& model = lDatabase().model().points;
-  const float near = 2.5f * lDatabase().model().sample_radius;
-  int voted = 0, right = 0, differ = 0;
-  for (std::uint32_t k = 0; k < points.size(); k += 3) {
-    std::vector<Correspondence> a, b;
-    plain.votePoint(points, normals, k, group, a);
-    weighted.votePoint(points, normals, k, group, b);
-    differ += a != b;
-    if (b.empty()) continue;
-    ++voted;
-    right += (model[b.front().model] - model[3 * k]).norm() <= near;
-  }
-  EXPECT_GT(voted, static_cast<int>(points.size()) / 15);
-  EXPECT_GT(right, 3 * voted / 4) << right << " of " << voted << " candidates near the true model point";
-  EXPECT_GT(differ, 0) << "the weights changed no point's candidates: this test would not see them work";
 }

@@ -42,7 +42,7 @@ TEST(PointGrid, KnnEqualsBruteForceTiesIncluded) {
       Vec3 q = points[rng.below(points.size())];
       if (t % 3 == 1) q += Vec3(float(rng.uniform()), float(rng.uniform()), float(rng.uniform()));
       if (t % 3 == 2) q += Vec3(0, 0, -300.0f * float(rng.uniform()) - 50.0f);
-      const std::size_t k = 1 + t % 16;  // k_normals (6, fast's 8) and well beyond
+      const std::size_t k = 1 + t % 16;  // k_normals (6, the default's 8) and well beyond
       std::uint32_t idx[16];
       float d2[16];
       const std::size_t n = grid.knn(q, k, idx, d2);

@@ -195,7 +195,7 @@ TEST(Revolution, DetectorFindsTheCapsOfABin) {
   };
   std::size_t found[2] = {0, 0}, half_visible = 0;
   for (const bool revolution : {false, true}) {
-    DetectionParams p = presetByName("fast");
+    DetectionParams p = defaultPreset();
     p.use_revolution = revolution;
     p.use_cyclic_symmetry = false;  // point to point without (a body of revolution has every order n)
     const Detector detector(db, scaledToModel(p, model.diameter));

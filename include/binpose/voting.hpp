@@ -55,27 +55,17 @@ VoteCut upperOutlierCut(std::span<const std::uint16_t> votes, std::vector<std::u
 /// maximum (ties at the cut by index), for parts whose symmetric points share their votes.
 std::vector<std::size_t> selectCandidates(std::span<const std::uint32_t> values, int keep = 1);
 
-/// Beyond the thesis: the votes one feature adds to each model point its key lists, when rare
-/// keys weigh more: the bit length of n_M / list length (integer division), about the bits the
-/// key tells of the model point (a key listing more than half of the n_M model points adds 1,
-/// one listing a sixteenth adds 5, one listing a single point of 4000 adds 12). The pairs of
-/// flat faces, listed under keys holding a sixth of the model, no longer outvote the rarer
-/// features of a part's shape. `list` >= 1.
-std::uint32_t keyWeight(std::size_t model_points, std::size_t list);
-
 /// Votes for the model points of every point of a sub-group (eq. 8-12). Holds the accumulator
 /// between calls so nothing is allocated per scene point; one Voter per thread.
 class Voter {
  public:
   /// `keep`: candidates per scene point (1: the thesis's maximum; see selectCandidates).
-  /// `max_list`: features whose key lists more model points than this are skipped (default: none).
   /// `spacing`: with keep > 1, each candidate at least this far (mm) in the model from every
-  /// better-voted one kept (0: none). `weigh_rare`: see keyWeight (false: one vote per feature, eq. 9).
+  /// better-voted one kept (0: none). Each feature adds one vote (eq. 9).
   /// `orbits` (a body of revolution; symmetry.hpp): votes go to orbits, by their lists, and each
   /// candidate orbit is given as its first model point (spacing then between orbits, in the
   /// axis's half-plane). It must outlive the voter.
-  explicit Voter(const ModelDatabase& db, int keep = 1, std::uint32_t max_list = UINT32_MAX, float spacing = 0.0f,
-                 bool weigh_rare = false, const Orbits* orbits = nullptr);
+  explicit Voter(const ModelDatabase& db, int keep = 1, float spacing = 0.0f, const Orbits* orbits = nullptr);
   /// Appends to `out` the candidate pairs of each point of `group` (indices into points/normals),
   /// each point voting with the whole group (the thesis's sub-group voting).
   void vote(const Points& points, const Points& normals, std::span<const std::uint32_t> group,
@@ -103,8 +93,6 @@ class Voter {
 
   const ModelDatabase& db_;
   int keep_;
-  bool weigh_rare_;
-  std::uint32_t max_list_;
   float spacing_;
   std::vector<std::uint32_t> keys_;       ///< the keys of one point's features
   struct Distinct {
@@ -140,8 +128,7 @@ class Voter {
 /// order whatever the thread count.
 class ParallelVoter {
  public:
-  explicit ParallelVoter(const ModelDatabase& db, int keep = 1, std::uint32_t max_list = UINT32_MAX, float spacing = 0.0f,
-                         bool weigh_rare = false, const Orbits* orbits = nullptr);
+  explicit ParallelVoter(const ModelDatabase& db, int keep = 1, float spacing = 0.0f, const Orbits* orbits = nullptr);
   void vote(const Points& points, const Points& normals, std::span<const std::uint32_t> group,
             std::vector<Correspondence>& out);
 
@@ -158,10 +145,10 @@ class ParallelVoter {
 class NeighbourhoodVoter {
  public:
   /// Only the points listed in `partners` are paired with the voters (all when empty). The
-  /// points and normals must outlive the voter. `spacing`, `weigh_rare`, `orbits`: as Voter's.
+  /// points and normals must outlive the voter. `spacing`, `orbits`: as Voter's.
   NeighbourhoodVoter(const ModelDatabase& db, const Points& points, const Points& normals, float radius, int keep,
-                     std::uint32_t max_list = UINT32_MAX, std::span<const std::uint32_t> partners = {},
-                     float spacing = 0.0f, bool weigh_rare = false, const Orbits* orbits = nullptr);
+                     std::span<const std::uint32_t> partners = {}, float spacing = 0.0f,
+                     const Orbits* orbits = nullptr);
   ~NeighbourhoodVoter();
   NeighbourhoodVoter(const NeighbourhoodVoter&) = delete;
   NeighbourhoodVoter& operator=(const NeighbourhoodVoter&) = delete;
@@ -190,7 +177,6 @@ class NeighbourhoodVoter {
 /// others' lists stay empty.
 std::vector<std::vector<std::uint32_t>> voteNeighbourhoods(const ModelDatabase& db, const Points& points,
                                                            const Points& normals, float radius, int keep,
-                                                           std::uint32_t max_list = UINT32_MAX,
                                                            std::span<const std::uint32_t> voters = {},
                                                            std::span<const std::uint32_t> partners = {});
 
