@@ -5,6 +5,7 @@
 #include "group_schedule.hpp"
 #include "local_votes.hpp"
 #include "model_shape.hpp"
+#include "part_symmetry.hpp"
 #include "scan_preparation.hpp"
 #include "subgroup_matcher.hpp"
 
@@ -50,27 +51,40 @@ void shareTimes(const ScheduleTimes& t, double setup_ms, double loop_ms, Detecti
   timing.match_ms = loop_ms - t.local_vote_ms - t.vote_ms * to_wall - timing.refine_ms;
 }
 
+/// The counts of each stage into the result.
+void countStages(const PreparedScan& prepared, std::size_t groups, const MatchState& state, DetectionResult& result) {
+  result.sampled_points = prepared.sampled_points;
+  result.plane_points = prepared.plane_points;
+  result.subgroups = groups;
+  result.subgroups_run = state.subgroups_run;
+  result.hypotheses = state.hypotheses_made;
+  result.refined = state.refined;
+  result.refound = state.refound;
+}
+
 }  // namespace
 
 Detector::Detector(const ModelDatabase& db, const DetectionParams& params)
-    : db_(db), params_(params),
+    : db_(db),
+      params_(params),
       icp_model_([&] {
-        OrientedPoints share = evenShare(db.model().points, db.model().normals, static_cast<std::size_t>(std::max(0, params.icp_model_points)));
+        OrientedPoints share =
+            evenShare(db.model().points, db.model().normals, static_cast<std::size_t>(std::max(0, params.icp_model_points)));
         return PreparedModel(std::move(share.points), std::move(share.normals));
       }()),
       scored_model_(db.model().points, db.model().normals) {
   validate(params_);
   const OrientedModel& model = db.model();
   if (params_.plane_min_area == 0) params_.plane_min_area = boundingFaceArea(model.points);
-  if (params_.use_revolution)
-    if (const auto axis = findRevolutionAxis(model)) orbits_ = makeOrbits(db, *axis, model.sample_radius);
-  if (params_.use_cyclic_symmetry && !orbits_)
-    if ((cyclic_ = findCyclicSymmetry(model))) classes_ = makeCyclicClasses(db, *cyclic_);
-  shape_ = std::make_unique<const ModelShape>(model.points, model.diameter, std::max(params_.sigma_dist, kShapeCellShare * model.diameter),
-                                              icp_model_.points(), orbits_ ? &orbits_->axis : nullptr, cyclicSymmetry());
+  symmetry_ = std::make_unique<const PartSymmetry>(db, params_);
+  shape_ = std::make_unique<const ModelShape>(model.points, model.diameter,
+                                              std::max(params_.sigma_dist, kShapeCellShare * model.diameter), icp_model_.points(),
+                                              orbits() != nullptr ? &orbits()->axis : nullptr, cyclicSymmetry());
 }
 
 Detector::~Detector() = default;
+const Orbits* Detector::orbits() const { return symmetry_->orbits(); }
+const CyclicSymmetry* Detector::cyclicSymmetry() const { return symmetry_->cyclic(); }
 Detector::Detector(Detector&&) noexcept = default;
 
 DetectionResult Detector::detect(const PointCloud& scan) const {
@@ -85,16 +99,18 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   std::vector<std::vector<std::uint32_t>> groups;  // 5.2.3-5.2.4, beside the local voters' set-up
   LocalVotes local;
   tbb::parallel_invoke([&] { groups = makeSubGroups(scene.points, p.eta, p.r, static_cast<std::size_t>(p.C_n)); },
-                       [&] { local = makeLocalVotes(db_, scene, p, votingOrbits()); });
+                       [&] { local = makeLocalVotes(db_, scene, p, *symmetry_); });
   result.timing.preprocess_ms = msSince(t0) - local.setup_ms;  // the voters' set-up counts as voting
 
   const auto t_match = Clock::now();  // 5.2.5-5.2.6: votes, clique, pose, verification, removal
   MatchState state(scene.points.size());
+  // clang-format off
   const Matcher matcher{db_, p, icp_model_, scored_model_, scene, scan, *prepared.grid, &*prepared.pixels,
-                        *prepared.evidence, local.voter.get(), local.may_vote, orbits(), cyclicSymmetry(),
+                        *prepared.evidence, local.voter.get(), local.may_vote, *symmetry_,
                         [&](const Pose& pose) { return state.seen(pose, *shape_, p.tried_share); },
                         [&](const Pose& pose) { return state.refoundAt(pose, *shape_, p.refound_share); }};
-  GroupSchedule schedule(db_, p, *shape_, matcher, groups, local.voter.get(), local.may_vote, votingOrbits(), state);
+  // clang-format on
+  GroupSchedule schedule(db_, p, *shape_, matcher, groups, local.voter.get(), local.may_vote, state);
   std::vector<std::uint32_t> order(groups.size());
   std::iota(order.begin(), order.end(), 0u);
   schedule.run(order, false);
@@ -106,18 +122,14 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   shareTimes(schedule.times(), local.setup_ms, msSince(t_match), result.timing);
 
   const auto t_suppress = Clock::now();  // best first, one detection per object
-  if (p.verify) result.detections = suppressDuplicates(std::move(state.hypotheses), scan.size(), *shape_);
-  else for (Hypothesis& h : state.hypotheses) result.detections.push_back(h.detection);
+  if (p.verify)
+    result.detections = suppressDuplicates(std::move(state.hypotheses), scan.size(), *shape_);
+  else
+    for (Hypothesis& h : state.hypotheses) result.detections.push_back(h.detection);
   if (p.max_instances > 0 && static_cast<int>(result.detections.size()) > p.max_instances && p.verify)
     result.detections.resize(static_cast<std::size_t>(p.max_instances));
   result.timing.match_ms += msSince(t_suppress);
-  result.sampled_points = prepared.sampled_points;
-  result.plane_points = prepared.plane_points;
-  result.subgroups = groups.size();
-  result.subgroups_run = state.subgroups_run;
-  result.hypotheses = state.hypotheses_made;
-  result.refined = state.refined;
-  result.refound = state.refound;
+  countStages(prepared, groups.size(), state, result);
   result.timing.total_ms = msSince(t0);
   return result;
 }

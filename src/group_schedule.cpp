@@ -61,13 +61,19 @@ bool MatchState::refoundAt(const Pose& pose, const ModelShape& shape, float refo
 
 GroupSchedule::GroupSchedule(const ModelDatabase& db, const DetectionParams& p, const ModelShape& shape, const Matcher& matcher,
                              const std::vector<std::vector<std::uint32_t>>& groups, NeighbourhoodVoter* local,
-                             const std::vector<char>& may_vote, const Orbits* voting_orbits, MatchState& state)
-    : p_(p), shape_(shape), matcher_(matcher), groups_(groups), local_(local), may_vote_(may_vote), state_(state),
+                             const std::vector<char>& may_vote, MatchState& state)
+    : p_(p),
+      shape_(shape),
+      matcher_(matcher),
+      groups_(groups),
+      local_(local),
+      may_vote_(may_vote),
+      state_(state),
       threads_(workerThreads()),
-      parallel_(db, candidatesPerPoint(p, voting_orbits), p.candidate_spacing, voting_orbits),
+      parallel_(db, matcher.symmetry.candidatesPerPoint(p), p.candidate_spacing, matcher.symmetry.votingOrbits()),
       largest_clique_(groups.size(), 0) {
   const std::size_t batch = kGroupsPerThread * std::max<std::size_t>(1, threads_);
-  for (std::size_t k = 0; k < batch; ++k) slots_.emplace_back(db, p, voting_orbits);
+  for (std::size_t k = 0; k < batch; ++k) slots_.emplace_back(db, p, matcher.symmetry);
   prepared_.reset(new std::atomic<bool>[batch]);
 }
 
@@ -103,10 +109,13 @@ void GroupSchedule::runBatch(const std::vector<std::uint32_t>& order, std::size_
     }
   });
   choosePosesToVerify(end - next);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, to_verify_.size(), 1), [&](const tbb::blocked_range<std::size_t>& range) {
-    for (std::size_t k = range.begin(); k < range.end(); ++k)
-      tbb::this_task_arena::isolate([&] { matcher_.verify(slots_[to_verify_[k]]); });
-  }, tbb::simple_partitioner());
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, to_verify_.size(), 1),
+      [&](const tbb::blocked_range<std::size_t>& range) {
+        for (std::size_t k = range.begin(); k < range.end(); ++k)
+          tbb::this_task_arena::isolate([&] { matcher_.verify(slots_[to_verify_[k]]); });
+      },
+      tbb::simple_partitioner());
   times_.work_ms += msSince(t_work);
 }
 
@@ -159,7 +168,8 @@ void GroupSchedule::choosePosesToVerify(std::size_t count) {
     if (!o.pending) continue;
     const auto near = [&](const Pose& pose) {
       return std::any_of(slots_.begin(), slots_.begin() + static_cast<long>(k), [&](const Slot& e) {
-        return std::any_of(e.outcome.poses.begin(), e.outcome.poses.end(), [&](const Pose& q) { return shape_.samePose(pose, q); });
+        return std::any_of(e.outcome.poses.begin(), e.outcome.poses.end(),
+                           [&](const Pose& q) { return shape_.samePose(pose, q); });
       });
     };
     if (!p_.verify || !std::any_of(o.poses.begin(), o.poses.end(), near)) to_verify_.push_back(k);

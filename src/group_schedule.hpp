@@ -30,17 +30,16 @@ struct MatchState {
 
 /// Time spent in the batches, ms, to be shared out among the stages (DetectionTiming).
 struct ScheduleTimes {
-  double local_vote_ms = 0;  ///< the batches' local votes
-  double work_ms = 0;        ///< wall time of the sub-groups' work
+  double local_vote_ms = 0;                         ///< the batches' local votes
+  double work_ms = 0;                               ///< wall time of the sub-groups' work
   double vote_ms = 0, match_ms = 0, refine_ms = 0;  ///< the threads' time in each stage, summed
 };
 
 class GroupSchedule {
  public:
-  /// `voting_orbits`: what the votes go to (orbits or a cyclic symmetry's classes; null: points).
   GroupSchedule(const ModelDatabase& db, const DetectionParams& p, const ModelShape& shape, const Matcher& matcher,
                 const std::vector<std::vector<std::uint32_t>>& groups, NeighbourhoodVoter* local,
-                const std::vector<char>& may_vote, const Orbits* voting_orbits, MatchState& state);
+                const std::vector<char>& may_vote, MatchState& state);
 
   /// The sub-groups `order` (indices into the groups), a batch at a time; `all_voters`: the
   /// second pass, every point's candidates taken.

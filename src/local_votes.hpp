@@ -6,6 +6,8 @@
 #include <binpose/scene.hpp>
 #include <binpose/voting.hpp>
 
+#include "part_symmetry.hpp"
+
 #include <memory>
 #include <vector>
 
@@ -20,6 +22,6 @@ struct LocalVotes {
 /// The voter over the scene (partners one per partner_spacing cube) and the reference points
 /// (one per voter_spacing cube; all without it). Empty when local_votes is off.
 LocalVotes makeLocalVotes(const ModelDatabase& db, const PreparedScene& scene, const DetectionParams& p,
-                          const Orbits* voting_orbits);
+                          const PartSymmetry& symmetry);
 
 }  // namespace binpose

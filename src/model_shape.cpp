@@ -14,8 +14,8 @@ constexpr float kSamePlaceShare = 0.1f;
 
 }  // namespace
 
-ModelShape::ModelShape(const Points& points, float diameter, float cell, Points overlap_points,
-                       const RevolutionAxis* axis, const CyclicSymmetry* cyclic)
+ModelShape::ModelShape(const Points& points, float diameter, float cell, Points overlap_points, const RevolutionAxis* axis,
+                       const CyclicSymmetry* cyclic)
     : grid_(points, cell), overlap_points_(std::move(overlap_points)), diameter_(diameter) {
   for (const Vec3& p : points) centroid_ += p;
   centroid_ /= static_cast<float>(points.size());

@@ -38,7 +38,7 @@ bool iterativeNormal(const Eigen::Matrix3d& W, Vec3& normal) {
 /// the margin of a rounding boundary: on the bench's bins about a third of the normals, most
 /// of them on the bin's floor and walls, whose coordinates along the scan's axes are zero or
 /// nearly so. (computeDirect's own eigenvectors, used alone, changed normals in their last
-/// bits, and the votes followed: rounds 6, 11 and 27 of docs/speed_history.md.)
+/// bits, and the votes followed.)
 bool closedFormNormal(const Eigen::Matrix3d& W, Eigen::Vector3d& v, Eigen::Vector3d& lambda) {
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> roots;
   roots.computeDirect(W, Eigen::EigenvaluesOnly);

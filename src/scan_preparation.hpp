@@ -18,12 +18,12 @@ struct PreparedScan {
   PreparedScan(const PreparedScan&) = delete;  // evidence refers to grid and pixels
   PreparedScan& operator=(const PreparedScan&) = delete;
 
-  std::optional<PointGrid> grid;           ///< the full scan's, for the normals, ICP and the score
-  std::optional<PixelNeighbours> pixels;   ///< the full scan's pixel index (empty for an unorganized scan)
-  PreparedScene scene;                     ///< the oriented points S that vote, without the bin's planes
-  std::optional<SceneEvidence> evidence;   ///< the score's view of the scan, the planes as background
-  std::size_t sampled_points = 0;          ///< oriented points after sub-sampling
-  std::size_t plane_points = 0;            ///< ... of them on the bin's planes, left out of `scene`
+  std::optional<PointGrid> grid;          ///< the full scan's, for the normals, ICP and the score
+  std::optional<PixelNeighbours> pixels;  ///< the full scan's pixel index (empty for an unorganized scan)
+  PreparedScene scene;                    ///< the oriented points S that vote, without the bin's planes
+  std::optional<SceneEvidence> evidence;  ///< the score's view of the scan, the planes as background
+  std::size_t sampled_points = 0;         ///< oriented points after sub-sampling
+  std::size_t plane_points = 0;           ///< ... of them on the bin's planes, left out of `scene`
 };
 
 /// Sub-samples the scan to rho_sub, fits normals over k_normals neighbours facing the viewpoint,

@@ -28,10 +28,6 @@ void reset(GroupOutcome& out, bool all_voters) {
 
 }  // namespace
 
-int candidatesPerPoint(const DetectionParams& p, const Orbits* orbits) {
-  return orbits != nullptr ? std::min(p.candidates_per_point, p.revolution_candidates) : p.candidates_per_point;
-}
-
 bool Matcher::prepare(std::span<const std::uint32_t> group, const std::vector<char>& removed, Slot& s, bool all_voters,
                       const GroupOutcome* earlier, ParallelVoter* parallel,
                       const std::function<bool(const GroupOutcome&)>& hold) const {
@@ -76,8 +72,10 @@ bool Matcher::collectVotes(Slot& s, bool all_voters, ParallelVoter* parallel) co
   const GroupOutcome& out = s.outcome;
   s.candidates.clear();
   if (local == nullptr) {  // 4.3: the sub-group's points vote among themselves
-    if (parallel != nullptr) parallel->vote(scene.points, scene.normals, out.members, s.candidates);  // the same pairs
-    else s.voter.vote(scene.points, scene.normals, out.members, s.candidates);
+    if (parallel != nullptr)
+      parallel->vote(scene.points, scene.normals, out.members, s.candidates);  // the same pairs
+    else
+      s.voter.vote(scene.points, scene.normals, out.members, s.candidates);
     return true;
   }
   // The second pass (retry_all_voters): nothing new when the other points have no candidate.
@@ -92,48 +90,26 @@ bool Matcher::collectVotes(Slot& s, bool all_voters, ParallelVoter* parallel) co
 
 bool Matcher::match(Slot& s) const {
   if (s.candidates.size() < static_cast<std::size_t>(p.C_n)) return false;
-  Graph graph = orbits != nullptr
-                    ? revolutionConsistencyGraph(s.candidates, scene.points, scene.normals, *orbits, p.e_gmax,
-                                                 p.revolution_angle_tolerance)
-                : cyclic != nullptr
-                    ? cyclicConsistencyGraph(s.candidates, scene.points, scene.normals, db.model(), *cyclic, p.e_gmax,
-                                             p.revolution_angle_tolerance)
-                    : consistencyGraph(s.candidates, scene.points, db.model().points, p.e_gmax);
+  Graph graph = symmetry.consistencyGraph(s.candidates, scene.points, scene.normals, db.model(), p);
   for (int retry = 0;; ++retry) {
     const CliqueResult clique = maximumClique(graph, p.clique_work_limit);
     if (retry == 0) s.outcome.largest_clique = static_cast<int>(clique.vertices.size());
     if (clique.vertices.size() < static_cast<std::size_t>(p.C_n)) return false;
     if (fitClique(s, clique)) return true;
     // A mirror image (or a degenerate set): the next largest clique without its pairs.
-    if (orbits != nullptr || retry >= p.mirror_retries) return false;
+    if (!symmetry.retriesMirrors() || retry >= p.mirror_retries) return false;
     graph.isolate(clique.vertices);
   }
 }
 
 bool Matcher::fitClique(Slot& s, const CliqueResult& clique) const {
-  const Points& model = db.model().points;
-  s.clique_scene.clear();
-  for (const int v : clique.vertices) s.clique_scene.push_back(scene.points[s.candidates[v].scene]);
-  PoseFit fit;
-  std::vector<PoseFit> fits;  // a body of revolution's: the first, then the other axis sign, if any
-  if (orbits != nullptr) {  // the axis of the clique's orbits; the other axis sign, if any, kept for the scan
-    s.clique_normals.clear();
-    s.clique_ids.clear();
-    for (const int v : clique.vertices) {
-      s.clique_normals.push_back(scene.normals[s.candidates[v].scene]);
-      s.clique_ids.push_back(s.candidates[v].model);
-    }
-    fits = solveRevolutionPoses(*orbits, s.clique_ids, model, s.clique_scene, s.clique_normals);
-    if (!fits.empty()) fit = fits.front();
-  } else {
-    s.clique_model.clear();
-    for (const int v : clique.vertices) s.clique_model.push_back(model[s.candidates[v].model]);
-    fit = cyclic != nullptr ? solveCyclicPose(*cyclic, s.clique_model, s.clique_scene) : solvePose(s.clique_model, s.clique_scene);
-  }
-  if (!fit.ok) return false;
-  for (const int v : clique.vertices) s.outcome.clique.push_back(s.candidates[v]);
-  s.outcome.poses.push_back(fit.pose);
-  for (std::size_t f = 1; f < fits.size(); ++f) s.outcome.poses.push_back(fits[f].pose);
+  s.clique.clear();
+  for (const int v : clique.vertices) s.clique.push_back(s.candidates[v]);
+  const std::vector<PoseFit> fits = symmetry.solve(s.clique, scene.points, scene.normals, db.model().points, s.buffers);
+  if (fits.empty() || !fits.front().ok) return false;
+  s.outcome.clique.insert(s.outcome.clique.end(), s.clique.begin(), s.clique.end());
+  for (const PoseFit& fit : fits) s.outcome.poses.push_back(fit.pose);  // the first, then its alternatives
+  const PoseFit& fit = fits.front();
   s.outcome.hypothesis.detection = Detection{fit.pose, 0.0f, static_cast<int>(clique.vertices.size()), fit.rms};
   return true;
 }

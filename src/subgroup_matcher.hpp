@@ -2,6 +2,7 @@
 // One sub-group through the thesis's steps (5.2.3-5.2.5): votes (4.3-4.4), the largest
 // consistent clique (4.5), Horn's pose (4.6), then verification: pre-screen, ICP and score.
 #include "model_shape.hpp"
+#include "part_symmetry.hpp"
 
 #include <binpose/detector.hpp>
 #include <binpose/pixel_neighbours.hpp>
@@ -18,34 +19,31 @@ namespace binpose {
 /// What one sub-group gave on the scene as it stood when it ran. Sub-groups run side by side in
 /// batches and are taken in their order afterwards (group_schedule.hpp).
 struct GroupOutcome {
-  std::vector<std::uint32_t> members;      ///< its points not removed when it ran
-  bool ran = false;                        ///< enough members to vote
-  std::vector<Correspondence> clique;      ///< the clique's pairs (empty: no pose)
-  std::vector<Pose> poses;                 ///< the clique's closed-form pose, then its alternatives
-                                           ///< (a body of revolution's other axis sign)
-  bool screened_out = false;               ///< the pose failed the pre-screen
-  bool pending = false;                    ///< a pose not seen when it ran, not verified yet (Matcher::verify)
-  bool held = false;                       ///< its clique not searched yet (run when taken)
-  std::vector<Pose> path;                  ///< ICP's pose after each step
-  bool refound = false;                    ///< ICP came to an object already found (and stopped there)
-  bool all_voters = false;                 ///< every member's candidates taken, not only the voters'
-  int largest_clique = 0;                  ///< size of the first clique searched (0: none searched)
-  Hypothesis hypothesis;                   ///< refined and scored (when the clique gave a pose that passed)
-  float score_without_grazing = 0;         ///< the hypothesis's (Evidence::scoreWithoutGrazing)
+  std::vector<std::uint32_t> members;               ///< its points not removed when it ran
+  bool ran = false;                                 ///< enough members to vote
+  std::vector<Correspondence> clique;               ///< the clique's pairs (empty: no pose)
+  std::vector<Pose> poses;                          ///< the clique's closed-form pose, then its alternatives
+                                                    ///< (a body of revolution's other axis sign)
+  bool screened_out = false;                        ///< the pose failed the pre-screen
+  bool pending = false;                             ///< a pose not seen when it ran, not verified yet (Matcher::verify)
+  bool held = false;                                ///< its clique not searched yet (run when taken)
+  std::vector<Pose> path;                           ///< ICP's pose after each step
+  bool refound = false;                             ///< ICP came to an object already found (and stopped there)
+  bool all_voters = false;                          ///< every member's candidates taken, not only the voters'
+  int largest_clique = 0;                           ///< size of the first clique searched (0: none searched)
+  Hypothesis hypothesis;                            ///< refined and scored (when the clique gave a pose that passed)
+  float score_without_grazing = 0;                  ///< the hypothesis's (Evidence::scoreWithoutGrazing)
   double vote_ms = 0, match_ms = 0, refine_ms = 0;  ///< the thread's time in each stage
 };
 
-/// Candidates kept per scene point: a body of revolution's votes do not spread over rings.
-int candidatesPerPoint(const DetectionParams& p, const Orbits* orbits);
-
 /// The buffers and the outcome of one place in a batch (the outcome is kept until it is taken).
 struct Slot {
-  Slot(const ModelDatabase& db, const DetectionParams& p, const Orbits* orbits)
-      : voter(db, candidatesPerPoint(p, orbits), p.candidate_spacing, orbits) {}
+  Slot(const ModelDatabase& db, const DetectionParams& p, const PartSymmetry& symmetry)
+      : voter(db, symmetry.candidatesPerPoint(p), p.candidate_spacing, symmetry.votingOrbits()) {}
   Voter voter;
   std::vector<Correspondence> candidates;
-  Points clique_model, clique_scene, clique_normals;
-  std::vector<std::uint32_t> clique_ids;
+  std::vector<Correspondence> clique;  ///< the clique being fitted
+  CliqueBuffers buffers;
   GroupOutcome outcome;
 };
 
@@ -53,17 +51,16 @@ struct Slot {
 struct Matcher {
   const ModelDatabase& db;
   const DetectionParams& p;
-  const PreparedModel& icp_model;   ///< ICP's share of the model points
+  const PreparedModel& icp_model;     ///< ICP's share of the model points
   const PreparedModel& scored_model;  ///< all of them, for the score
   const PreparedScene& scene;
   const PointCloud& scan;
   const PointGrid& scan_grid;
-  const PixelNeighbours* pixels;    ///< the scan's, for ICP's searches (null: the grid alone)
+  const PixelNeighbours* pixels;  ///< the scan's, for ICP's searches (null: the grid alone)
   const SceneEvidence& evidence;
-  const NeighbourhoodVoter* local;  ///< the local votes (null: each sub-group votes, 4.3)
+  const NeighbourhoodVoter* local;    ///< the local votes (null: each sub-group votes, 4.3)
   const std::vector<char>& may_vote;  ///< with local votes, the points of voter_spacing
-  const Orbits* orbits;             ///< a body of revolution's (null: matched point to point)
-  const CyclicSymmetry* cyclic;     ///< a part of n-fold symmetry's (candidates: class members)
+  const PartSymmetry& symmetry;       ///< none, a body of revolution's orbits, or n-fold symmetry
   /// True when a pose is another of an object already found (explain_score), or close to a
   /// clique pose already verified (tried_share): its clique is not verified again.
   std::function<bool(const Pose&)> seen;

@@ -136,9 +136,8 @@ void prefetchIds(std::span<const ModelDatabase::PointId> ids) {
 }
 
 /// The lines of a bitset fetched before it is added; the rest as it is added, that many lines
-/// ahead. All of its 8 lines asked for at the lookup, a point's 41 bitsets (ipd8-16) filled
-/// the miss buffers and the prefetches stalled (a third of votePoint's samples); metered,
-/// ipd8-16's votes took 1.6-2.4 ms less on one core (round 35).
+/// ahead. All of its 8 lines asked for at the lookup, a point's ~41 bitsets fill the miss
+/// buffers and the prefetches stall (docs/benchmarks.md, where the time goes).
 constexpr std::size_t kBitsetLinesAhead = 2;
 
 #if defined(__x86_64__)
@@ -341,8 +340,7 @@ BINPOSE_AVX2_INLINE __m256i valueBits(const std::uint8_t* at, __m256i bit_of, __
 /// equal[j] = how many of the bytes (a multiple of 128) equal from + j, for j < 8: each byte
 /// turned into one bit (bit j for from + j, none for any other value), and the bits at each
 /// position counted down the bytes as eight bit planes (vertical counters, carry-save adders
-/// four bytes' bits at a time, as addBitsetsSliced). 1.7x as fast as comparing each value
-/// (0.44 against 0.75 us for 4096 bytes on this EPYC).
+/// four bytes' bits at a time, as addBitsetsSliced). 1.7x as fast as comparing each value.
 __attribute__((target("avx2"))) void countEqual(std::span<const std::uint8_t> bytes, int from, std::uint64_t (&equal)[8]) {
   const __m256i bit_of = _mm256_setr_epi8(1, 2, 4, 8, 16, 32, 64, -128, 0, 0, 0, 0, 0, 0, 0, 0, 1, 2, 4, 8, 16, 32, 64, -128,
                                           0, 0, 0, 0, 0, 0, 0, 0);
@@ -468,10 +466,8 @@ void Voter::countDense(std::vector<Count>& counters) {
   // Bitsets rather than id lists for the lists of a 48th of the model points and more: with n_M
   // = 4000, a list costs about 64 logic operations on 256-bit words and the points' counts
   // about 1.5 operations a point, against about 1 ns a point listed (IPD obj 8's points each
-  // had 41 such lists, 31000 points in all, from a 32nd). A 48th rather than a 32nd (round 32,
-  // ipd8-16, two threads, six alternations of 61 runs): votes 18.7-21.8 ms against 20.6-22.0,
-  // ipd0-16 unchanged; IPD obj 8's lists of 83 to 124 points held as bitsets too, 4 MB more.
-  // A 16th: one core's votes 38.6-39.1 ms against 36.2-37.7; a 64th as a 48th.
+  // had 41 such lists, 31000 points in all, from a 32nd). A 48th measured faster than a 32nd
+  // or a 16th on the bench bins, and no slower than a 64th.
   if (!dense_lists_.empty()) addBitsets(counters.data(), dense_lists_, counters.size() / 256);
   dense_lists_.clear();
 }

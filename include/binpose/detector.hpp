@@ -49,6 +49,7 @@ struct Hypothesis {
 };
 
 class ModelShape;
+class PartSymmetry;
 
 class Detector {
  public:
@@ -62,21 +63,16 @@ class Detector {
 
   [[nodiscard]] const DetectionParams& params() const { return params_; }
   /// The model's orbits when it is matched as a body of revolution (use_revolution), else null.
-  [[nodiscard]] const Orbits* orbits() const { return orbits_ ? &*orbits_ : nullptr; }
+  [[nodiscard]] const Orbits* orbits() const;
   /// The model's n-fold symmetry when it is matched by classes of images (use_cyclic_symmetry), else null.
-  [[nodiscard]] const CyclicSymmetry* cyclicSymmetry() const { return cyclic_ ? &*cyclic_ : nullptr; }
+  [[nodiscard]] const CyclicSymmetry* cyclicSymmetry() const;
 
  private:
-  /// What the votes go to: a body of revolution's orbits or a cyclic symmetry's classes (null: model points).
-  [[nodiscard]] const Orbits* votingOrbits() const { return orbits_ ? &*orbits_ : classes_ ? &*classes_ : nullptr; }
-
   const ModelDatabase& db_;
   DetectionParams params_;
   PreparedModel icp_model_;     ///< the model points ICP pairs up (icp_model_points of them)
   PreparedModel scored_model_;  ///< all the model points, for the score
-  std::optional<Orbits> orbits_;
-  std::optional<CyclicSymmetry> cyclic_;
-  std::optional<Orbits> classes_;  ///< cyclic_'s classes of images
+  std::unique_ptr<const PartSymmetry> symmetry_;  ///< none, a body of revolution, or n-fold symmetry
   std::unique_ptr<const ModelShape> shape_;  ///< removal, same-pose and overlap tests
 };
 

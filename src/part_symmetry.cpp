@@ -1,0 +1,64 @@
+// The three kinds of part symmetry behind one interface.
+#include "part_symmetry.hpp"
+
+#include <algorithm>
+
+namespace binpose {
+
+PartSymmetry::PartSymmetry(const ModelDatabase& db, const DetectionParams& p) {
+  const OrientedModel& model = db.model();
+  if (p.use_revolution)
+    if (const auto axis = findRevolutionAxis(model)) {
+      orbits_ = makeOrbits(db, *axis, model.sample_radius);
+      kind_ = Kind::Revolution;
+      return;
+    }
+  if (p.use_cyclic_symmetry)
+    if ((cyclic_ = findCyclicSymmetry(model))) {
+      classes_ = makeCyclicClasses(db, *cyclic_);
+      kind_ = Kind::Cyclic;
+    }
+}
+
+const Orbits* PartSymmetry::votingOrbits() const {
+  return orbits_ ? &*orbits_ : classes_ ? &*classes_ : nullptr;
+}
+
+int PartSymmetry::candidatesPerPoint(const DetectionParams& p) const {
+  return kind_ == Kind::None ? p.candidates_per_point : std::min(p.candidates_per_point, p.revolution_candidates);
+}
+
+Graph PartSymmetry::consistencyGraph(std::span<const Correspondence> cps, const Points& scene, const Points& scene_normals,
+                                     const OrientedModel& model, const DetectionParams& p) const {
+  switch (kind_) {
+    case Kind::Revolution:
+      return revolutionConsistencyGraph(cps, scene, scene_normals, *orbits_, p.e_gmax, p.revolution_angle_tolerance);
+    case Kind::Cyclic:
+      return cyclicConsistencyGraph(cps, scene, scene_normals, model, *cyclic_, p.e_gmax, p.revolution_angle_tolerance);
+    case Kind::None:
+      break;
+  }
+  return binpose::consistencyGraph(cps, scene, model.points, p.e_gmax);
+}
+
+std::vector<PoseFit> PartSymmetry::solve(std::span<const Correspondence> clique, const Points& scene,
+                                         const Points& scene_normals, const Points& model, CliqueBuffers& b) const {
+  b.scene.clear();
+  for (const Correspondence& c : clique) b.scene.push_back(scene[c.scene]);
+  if (kind_ == Kind::Revolution) {  // the axis of the clique's orbits
+    b.scene_normals.clear();
+    b.model_ids.clear();
+    for (const Correspondence& c : clique) {
+      b.scene_normals.push_back(scene_normals[c.scene]);
+      b.model_ids.push_back(c.model);
+    }
+    return solveRevolutionPoses(*orbits_, b.model_ids, model, b.scene, b.scene_normals);
+  }
+  b.model.clear();
+  for (const Correspondence& c : clique) b.model.push_back(model[c.model]);
+  PoseFit fit = kind_ == Kind::Cyclic ? solveCyclicPose(*cyclic_, b.model, b.scene) : solvePose(b.model, b.scene);
+  if (!fit.ok) return {};
+  return {fit};
+}
+
+}  // namespace binpose
