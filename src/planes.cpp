@@ -46,6 +46,35 @@ std::vector<std::vector<std::uint32_t>> floodPatches(const Points& points, const
   return out;
 }
 
+
+/// Union-find over n items; a set's root is its smallest item.
+struct DisjointSets {
+  explicit DisjointSets(std::size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0u); }
+  std::uint32_t root(std::uint32_t a) {
+    while (parent[a] != a) a = parent[a] = parent[parent[a]];
+    return a;
+  }
+  void join(std::uint32_t a, std::uint32_t b) {
+    const std::uint32_t ra = root(a), rb = root(b);
+    if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
+  }
+  /// members[k] grouped by k's set, the groups in the order of their first item.
+  std::vector<std::vector<std::uint32_t>> groups(const std::vector<std::uint32_t>& members) {
+    std::vector<std::vector<std::uint32_t>> out;
+    std::vector<std::uint32_t> group_of(parent.size(), ~std::uint32_t{0});
+    for (std::uint32_t k = 0; k < parent.size(); ++k) {
+      std::uint32_t& g = group_of[root(k)];
+      if (g == ~std::uint32_t{0}) {
+        g = static_cast<std::uint32_t>(out.size());
+        out.emplace_back();
+      }
+      out[g].push_back(members[k]);
+    }
+    return out;
+  }
+  std::vector<std::uint32_t> parent;
+};
+
 }  // namespace
 
 namespace detail {
@@ -87,31 +116,22 @@ std::vector<std::vector<std::uint32_t>> linkedPatches(const Points& points, cons
     cell_of[k] = static_cast<std::uint32_t>(cv * cols + cu);
   }
   sortByCell(cell_of, cols * rows, offsets, order);
-  std::vector<std::uint32_t> parent(n);
-  std::iota(parent.begin(), parent.end(), 0u);
-  auto root = [&](std::uint32_t a) {
-    while (parent[a] != a) a = parent[a] = parent[parent[a]];
-    return a;
-  };
-  auto join = [&](std::uint32_t a, std::uint32_t b) {
-    const std::uint32_t ra = root(a), rb = root(b);
-    if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
-  };
+  DisjointSets sets(n);
   const float limit = link * link;
   auto linkCells = [&](std::size_t a, std::size_t b) {  // a's and b's points joined by their first linked pair
-    if (root(order[offsets[a]]) == root(order[offsets[b]])) return;
+    if (sets.root(order[offsets[a]]) == sets.root(order[offsets[b]])) return;
     for (std::uint32_t s = offsets[a]; s < offsets[a + 1]; ++s)
       for (std::uint32_t t = offsets[b]; t < offsets[b + 1]; ++t) {
         const Vec3 d = points[members[order[t]]] - points[members[order[s]]];
         if (d.x() * d.x() + (d.y() * d.y() + d.z() * d.z()) >= limit) continue;
-        join(order[s], order[t]);
+        sets.join(order[s], order[t]);
         return;
       }
   };
   for (std::size_t first = 0; first < n;) {  // the occupied cells, in order
     const std::size_t a = cell_of[order[first]];
     first = offsets[a + 1];
-    for (std::uint32_t s = offsets[a] + 1; s < offsets[a + 1]; ++s) join(order[offsets[a]], order[s]);
+    for (std::uint32_t s = offsets[a] + 1; s < offsets[a + 1]; ++s) sets.join(order[offsets[a]], order[s]);
     const auto x = static_cast<std::ptrdiff_t>(a % cols), y = static_cast<std::ptrdiff_t>(a / cols);
     // The cells within reach that come after a in (v, u) order.
     for (std::ptrdiff_t dy = 0; dy <= reach; ++dy)
@@ -122,16 +142,7 @@ std::vector<std::vector<std::uint32_t>> linkedPatches(const Points& points, cons
         if (offsets[b] != offsets[b + 1]) linkCells(a, b);
       }
   }
-  std::vector<std::uint32_t> patch_of(n, ~std::uint32_t{0});
-  for (std::uint32_t k = 0; k < n; ++k) {
-    std::uint32_t& p = patch_of[root(k)];
-    if (p == ~std::uint32_t{0}) {
-      p = static_cast<std::uint32_t>(out.size());
-      out.emplace_back();
-    }
-    out[p].push_back(members[k]);
-  }
-  return out;
+  return sets.groups(members);
 }
 
 }  // namespace detail
@@ -169,14 +180,40 @@ PlaneParams planeParams(const DetectionParams& params) {
   return planes;
 }
 
-std::vector<char> largePlanes(const Points& points, const Points& normals, float density, const PlaneParams& params,
-                              std::vector<Plane>* removed, const LateNormals* late) {
+namespace {
+
+void checkPlaneInputs(const Points& points, const Points& normals, float density, const PlaneParams& params,
+                      const LateNormals* late) {
   if (points.size() != normals.size()) throw Error("largePlanes: one normal per point needed");
   if (late != nullptr && (late->pending == nullptr || late->pending->size() != points.size() || !late->finish || !late->aligned))
     throw Error("largePlanes: late normals need one pending flag per point, finish and aligned");
   if (!(density > 0) || !(params.min_area > 0) || !(params.tolerance > 0) || !(params.link > 0))
     throw Error(fmt::format("plane removal needs positive density, area, tolerance and link, got {}, {}, {}, {}", density,
                             params.min_area, params.tolerance, params.link));
+}
+
+/// The first of the hypotheses with the most probe points on them, scored side by side.
+Plane bestHypothesis(const detail::OrientedLanes& probe_points, const std::vector<Plane>& hypotheses, float tolerance,
+                     float min_cos, std::vector<std::size_t>& counts) {
+  counts.resize(hypotheses.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, hypotheses.size(), 32), [&](const auto& range) {
+    for (std::size_t t = range.begin(); t < range.end(); ++t) counts[t] = countOnPlane(probe_points, hypotheses[t], tolerance, min_cos);
+  });
+  std::size_t best_count = 0;
+  Plane best;
+  for (std::size_t t = 0; t < hypotheses.size(); ++t)
+    if (counts[t] > best_count) {
+      best_count = counts[t];
+      best = hypotheses[t];
+    }
+  return best;
+}
+
+}  // namespace
+
+std::vector<char> largePlanes(const Points& points, const Points& normals, float density, const PlaneParams& params,
+                              std::vector<Plane>* removed, const LateNormals* late) {
+  checkPlaneInputs(points, normals, density, params, late);
   std::vector<char> plane(points.size(), 0), tried(points.size(), 0);
   const auto min_count = static_cast<std::size_t>(std::ceil(params.min_area * density));
   const float min_cos = std::cos(params.max_angle);
@@ -226,18 +263,7 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
     finish(drawn);
     hypotheses.clear();
     for (const auto s : drawn) hypotheses.push_back({normals[s], normals[s].dot(points[s])});
-    counts.resize(hypotheses.size());
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, hypotheses.size(), 32), [&](const auto& range) {
-      for (std::size_t t = range.begin(); t < range.end(); ++t)
-        counts[t] = countOnPlane(probe_points, hypotheses[t], params.tolerance, min_cos);
-    });
-    std::size_t best_count = 0;
-    Plane best;
-    for (std::size_t t = 0; t < hypotheses.size(); ++t)
-      if (counts[t] > best_count) {
-        best_count = counts[t];
-        best = hypotheses[t];
-      }
+    const Plane best = bestHypothesis(probe_points, hypotheses, params.tolerance, min_cos, counts);
     inliers.clear();
     for (const auto i : left)
       if (inlier(i, best)) inliers.push_back(i);

@@ -297,75 +297,103 @@ bool nearest(const PointGrid& grid, const PixelNeighbours* pixels, const Vec3& q
 
 }  // namespace
 
+namespace {
+
+/// ICP's memory between steps, per model point.
+struct IcpPairs {
+  explicit IcpPairs(std::size_t n) : paired(n, kUnpaired), missed_at(n), clearance(n, 0.0f), parts((n + kChunk - 1) / kChunk) {}
+  // Each model point's scan pair of the step before: the pairs move little from step to step, so
+  // the nearest lies no farther than the old pair, and a search of that small box finds it (the
+  // same pair as a search out to the gate).
+  std::vector<std::uint32_t> paired;
+  // An unpaired point's last search: where the point was, and how far around it the scan had no
+  // point. Most of a posed model's sensor-facing points lie where the scan sees another surface
+  // (under other parts, or the part's own hidden side): each step's search for them finds
+  // nothing. Moved by less than clearance - gate since, such a point still has none within the
+  // gate (triangle inequality), and is not searched.
+  std::vector<Vec3> missed_at;
+  std::vector<float> clearance;
+  std::vector<NormalEquations> parts;  ///< per chunk of model points, added in order
+};
+
+/// The point-to-plane normal equations of one step about centre c: every `stride`-th model
+/// point facing the viewpoint, paired with its nearest scan point within the gate.
+NormalEquations pairUp(const detail::OrientedLanes& lanes, std::size_t used, std::size_t stride, const Pose& current,
+                       const Vec3& c, float gate, const Points& scan, const PointGrid& scan_grid, const PixelNeighbours* pixels,
+                       const Vec3& viewpoint, IcpPairs& state) {
+  const std::size_t chunks = (used + kChunk - 1) / kChunk;
+  tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t k) {
+    NormalEquations& e = state.parts[k];
+    e = NormalEquations{};
+    const std::size_t end = std::min(used, (k + 1) * kChunk);
+    alignas(16) float pf[12], nf[12];  // four posed points and normals, coordinate by coordinate
+    unsigned facing = 0;
+    for (std::size_t s = k * kChunk; s < end; ++s) {
+      const std::size_t lane = (s - k * kChunk) % 4;  // kChunk is a multiple of 4
+      if (lane == 0) facing = poseFour(lanes, s, current, viewpoint, pf, nf);
+      if ((facing >> lane & 1u) == 0) continue;
+      const std::size_t i = s * stride;
+      const Vec3 p(pf[lane], pf[4 + lane], pf[8 + lane]);
+      const Vec3 n(nf[lane], nf[4 + lane], nf[8 + lane]);
+      std::uint32_t& j = state.paired[i];
+      if (j == kUnpaired && state.clearance[i] - (p - state.missed_at[i]).norm() > gate + kClearanceMargin) continue;
+      float d2;
+      const float old_d2 = j != kUnpaired ? (scan[j] - p).squaredNorm() : INFINITY;
+      const bool found = old_d2 <= gate * gate ? nearestWithin(scan_grid, pixels, p, old_d2, j, d2)
+                                               : nearest(scan_grid, pixels, p, gate, j, d2, state.clearance[i]);
+      if (!found) {
+        j = kUnpaired;
+        state.missed_at[i] = p;
+        continue;
+      }
+      // residual n.(q - p) against the step (omega, t): n.(omega x (p - c) + t)
+      Eigen::Matrix<double, 6, 1> J;
+      J << (p - c).cross(n).cast<double>(), n.cast<double>();
+      const double r = n.dot(scan[j] - p);
+      e.A += J * J.transpose();
+      e.b += J * r;
+      ++e.pairs;
+    }
+  });
+  NormalEquations sum;  // the chunks added in order
+  for (std::size_t k = 0; k < chunks; ++k) {
+    sum.A += state.parts[k].A;
+    sum.b += state.parts[k].b;
+    sum.pairs += state.parts[k].pairs;
+  }
+  return sum;
+}
+
+/// The rigid step p -> R (p - c) + c + t of the solution x = (omega, t).
+Pose stepAbout(const Vec3& c, const Eigen::Matrix<double, 6, 1>& x) {
+  const Eigen::Vector3d omega = x.head<3>();
+  Eigen::Matrix3f R = Eigen::Matrix3f::Identity();
+  if (omega.norm() > 0) R = Eigen::AngleAxisd(omega.norm(), omega.normalized()).toRotationMatrix().cast<float>();
+  Pose step = Pose::Identity();
+  step.linear() = R;
+  step.translation() = c - R * c + x.tail<3>().cast<float>();
+  return step;
+}
+
+}  // namespace
+
 Pose refinePose(const Pose& pose, const PreparedModel& model, const Points& scan, const PointGrid& scan_grid,
                 const IcpParams& params) {
   const Points& model_points = model.points();
-  const Vec3& model_centre = model.centre();
   const PixelNeighbours* pixels = params.pixels != nullptr && params.pixels->usable() ? params.pixels : nullptr;
   const double length = model.reach();  // the part's reach from its centre: rotations in mm at its edge
   Pose current = pose;
   float gate = params.max_distance;
-  std::vector<NormalEquations> parts((model_points.size() + kChunk - 1) / kChunk);
   std::size_t stride = coarseStride(model_points.size());
-  const detail::OrientedLanes &all = model.lanes(), &coarse = model.coarseLanes();
-  // Each model point's scan pair of the step before: the pairs move little from step to step, so
-  // the nearest lies no farther than the old pair, and a search of that small box finds it (the
-  // same pair as a search out to the gate).
-  std::vector<std::uint32_t> paired(model_points.size(), kUnpaired);
-  // An unpaired point's last search: where the point was, and how far around it the scan had no
-  // point. Most of a posed model's sensor-facing points lie where the scan sees another surface
-  // (under other parts, or the part's own hidden side): each step's search for them finds
-  // nothing (70% of the cap bin's ICP searches). Moved by less than clearance - gate since,
-  // such a point still has none within the gate (triangle inequality), and is not searched.
-  std::vector<Vec3> missed_at(model_points.size());
-  std::vector<float> clearance(model_points.size(), 0.0f);
+  IcpPairs pairs(model_points.size());
   double last_moved = INFINITY;  // the last step's, in the current stage
   for (int it = 0; it < params.iterations; ++it) {
     // Linearised about the posed model's centre: a part's free motions (the spin of a body of
     // revolution) then stay pure rotations about its own axis instead of leaking into t.
-    const Vec3 c = current * model_centre;
+    const Vec3 c = current * model.centre();
     const std::size_t used = (model_points.size() + stride - 1) / stride;  // points i = s * stride
-    const std::size_t chunks = (used + kChunk - 1) / kChunk;
-    const detail::OrientedLanes& lanes = stride == 1 ? all : coarse;
-    tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t k) {
-      NormalEquations& e = parts[k];
-      e = NormalEquations{};
-      const std::size_t end = std::min(used, (k + 1) * kChunk);
-      alignas(16) float pf[12], nf[12];  // four posed points and normals, coordinate by coordinate
-      unsigned facing = 0;
-      for (std::size_t s = k * kChunk; s < end; ++s) {
-        const std::size_t lane = (s - k * kChunk) % 4;  // kChunk is a multiple of 4
-        if (lane == 0) facing = poseFour(lanes, s, current, params.viewpoint, pf, nf);
-        if ((facing >> lane & 1u) == 0) continue;
-        const std::size_t i = s * stride;
-        const Vec3 p(pf[lane], pf[4 + lane], pf[8 + lane]);
-        const Vec3 n(nf[lane], nf[4 + lane], nf[8 + lane]);
-        std::uint32_t& j = paired[i];
-        if (j == kUnpaired && clearance[i] - (p - missed_at[i]).norm() > gate + kClearanceMargin) continue;
-        float d2;
-        const float old_d2 = j != kUnpaired ? (scan[j] - p).squaredNorm() : INFINITY;
-        const bool found = old_d2 <= gate * gate ? nearestWithin(scan_grid, pixels, p, old_d2, j, d2)
-                                                 : nearest(scan_grid, pixels, p, gate, j, d2, clearance[i]);
-        if (!found) {
-          j = kUnpaired;
-          missed_at[i] = p;
-          continue;
-        }
-        // residual n.(q - p) against the step (omega, t): n.(omega x (p - c) + t)
-        Eigen::Matrix<double, 6, 1> J;
-        J << (p - c).cross(n).cast<double>(), n.cast<double>();
-        const double r = n.dot(scan[j] - p);
-        e.A += J * J.transpose();
-        e.b += J * r;
-        ++e.pairs;
-      }
-    });
-    NormalEquations sum;  // the chunks added in order
-    for (std::size_t k = 0; k < chunks; ++k) {
-      sum.A += parts[k].A;
-      sum.b += parts[k].b;
-      sum.pairs += parts[k].pairs;
-    }
+    const detail::OrientedLanes& lanes = stride == 1 ? model.lanes() : model.coarseLanes();
+    const NormalEquations sum = pairUp(lanes, used, stride, current, c, gate, scan, scan_grid, pixels, params.viewpoint, pairs);
     if (sum.pairs < 12) {
       if (stride == 1) break;
       stride = 1;  // too few pairs among the coarse points: on with all of them
@@ -373,20 +401,14 @@ Pose refinePose(const Pose& pose, const PreparedModel& model, const Points& scan
     }
     const Eigen::Matrix<double, 6, 1> x = constrainedStep(sum.A, sum.b, length);
     if (!x.allFinite()) break;
-    const Eigen::Vector3d omega = x.head<3>();
-    Eigen::Matrix3f R = Eigen::Matrix3f::Identity();
-    if (omega.norm() > 0) R = Eigen::AngleAxisd(omega.norm(), omega.normalized()).toRotationMatrix().cast<float>();
-    Pose step = Pose::Identity();  // p -> R (p - c) + c + t
-    step.linear() = R;
-    step.translation() = c - R * c + x.tail<3>().cast<float>();
-    current = step * current;
+    current = stepAbout(c, x) * current;
     if (params.path != nullptr) params.path->push_back(current);
     if (params.stop && params.stop(current)) break;
     gate = std::max(params.min_distance, gate * 0.7f);
     // Converged when no model point moves more than kConverged (the step's rotation at the
     // part's reach plus its translation), or stalled (kStalled); the coarse points hand over
     // at kCoarseConverged.
-    const double moved = omega.norm() * length + x.tail<3>().norm();
+    const double moved = x.head<3>().norm() * length + x.tail<3>().norm();
     if (stride > 1) {
       if (moved < kCoarseConverged || moved >= last_moved || it + 1 >= kCoarseSteps) {
         stride = 1;
@@ -480,26 +502,34 @@ Evidence SceneEvidence::evaluate(const Pose& pose, const Points& model_points, c
   return evaluate(pose, PreparedModel(model_points, model_normals), tolerance, model_spacing, support);
 }
 
-Evidence SceneEvidence::evaluate(const Pose& pose, const PreparedModel& model, float tolerance, float model_spacing,
-                                 std::vector<std::uint32_t>* support) const {
-  // Sensor-facing points of the posed model, with their range and direction in the image frame.
-  struct Facing { Vec3 p; float range, u, v; bool grazing; };
+namespace {
+
+/// A sensor-facing point of the posed model, with its range and direction in the image frame.
+struct Facing {
+  Vec3 p;
+  float range, u, v;
+  bool grazing;
+};
+
+/// The posed model's points that face the viewpoint and lie in front of it.
+std::vector<Facing> facingPoints(const Pose& pose, const PreparedModel& model, const Eigen::Matrix3f& to_view,
+                                 const Vec3& viewpoint, float cos_grazing_angle) {
   std::vector<Facing> facing;
   facing.reserve(model.points().size() / 2 + 64);  // about half face the sensor: one allocation, not one per doubling
 #if defined(__SSE2__)
   // Four points at a time (poseFour, ViewLanes), each lane summed as the scalar code below sums
   // (the dot as a + (b + c)).
   const detail::OrientedLanes& lanes = model.lanes();
-  const ViewLanes view(to_view_);
-  const __m128 cos_grazing = _mm_set1_ps(cos_grazing_);
+  const ViewLanes view(to_view);
+  const __m128 cos_grazing = _mm_set1_ps(cos_grazing_angle);
   for (std::size_t s = 0; s < lanes.size; s += 4) {
     alignas(16) float pf[12], nf[12];
-    unsigned keep = poseFour(lanes, s, pose, viewpoint_, pf, nf);
+    unsigned keep = poseFour(lanes, s, pose, viewpoint, pf, nf);
     if (s + 4 > lanes.size) keep &= (1u << (lanes.size - s)) - 1u;  // the padding
     if (keep == 0) continue;
     __m128 w[3], d[3], n[3];
     for (int k = 0; k < 3; ++k) {
-      const __m128 p = _mm_load_ps(pf + 4 * k), v = _mm_set1_ps(viewpoint_[k]);
+      const __m128 p = _mm_load_ps(pf + 4 * k), v = _mm_set1_ps(viewpoint[k]);
       w[k] = _mm_sub_ps(v, p);
       d[k] = _mm_sub_ps(p, v);
       n[k] = _mm_load_ps(nf + 4 * k);
@@ -525,15 +555,19 @@ Evidence SceneEvidence::evaluate(const Pose& pose, const PreparedModel& model, f
   for (std::size_t i = 0; i < model_points.size(); ++i) {
     const Vec3 p = pose * model_points[i];
     const Vec3 n = pose.linear() * model_normals[i];
-    if (!facesSensor(p, n, viewpoint_)) continue;
-    const Vec3 q = to_view_ * (p - viewpoint_);
+    if (!facesSensor(p, n, viewpoint)) continue;
+    const Vec3 q = to_view * (p - viewpoint);
     if (q.z() <= 0) continue;
     const float range = q.norm();  // the normal is of unit length: its dot is the incidence's cosine times range
-    facing.push_back({p, range, q.x() / q.z(), q.y() / q.z(), n.dot(viewpoint_ - p) < cos_grazing_ * range});
+    facing.push_back({p, range, q.x() / q.z(), q.y() / q.z(), n.dot(viewpoint - p) < cos_grazing_angle * range});
   }
 #endif
-  // The model's own z-buffer on cells of two sample spacings: a facing point with the model's
-  // surface clearly in front of it is hidden by the part itself and is not expected in the scan.
+  return facing;
+}
+
+/// The model's own z-buffer on cells of two sample spacings: a facing point with the model's
+/// surface clearly in front of it is hidden by the part itself and is not expected in the scan.
+std::optional<ZBuffer> selfOcclusion(const std::vector<Facing>& facing, float model_spacing) {
   std::optional<ZBuffer> front;
   if (!facing.empty() && model_spacing > 0) {
     float mean_range = 0, u0 = INFINITY, u1 = -INFINITY, v0 = INFINITY, v1 = -INFINITY;
@@ -545,8 +579,36 @@ Evidence SceneEvidence::evaluate(const Pose& pose, const PreparedModel& model, f
     front.emplace(u0, u1, v0, v1, 2.0f * model_spacing / (mean_range / static_cast<float>(facing.size())));
     for (const Facing& f : facing) front->add(f.u, f.v, f.range);
   }
+  return front;
+}
+
+enum Verdict : std::uint8_t { kHidden, kSupported, kContradicted, kUnknown };
+
+/// The counts of the verdicts, in order; the supporting scan points into `support` when given.
+Evidence tally(const std::vector<Facing>& facing, const std::vector<Verdict>& verdict, const std::vector<std::uint32_t>& nearest,
+               std::vector<std::uint32_t>* support) {
+  Evidence e;
+  for (std::size_t i = 0; i < facing.size(); ++i) {
+    if (verdict[i] == kHidden) continue;
+    ++e.facing;
+    e.supported += verdict[i] == kSupported;
+    e.contradicted += verdict[i] == kContradicted;
+    if (facing[i].grazing) {
+      ++e.grazing;
+      e.grazing_supported += verdict[i] == kSupported;
+      e.grazing_contradicted += verdict[i] == kContradicted;
+    }
+    if (support && verdict[i] == kSupported) support->push_back(nearest[i]);
+  }
+  return e;}
+
+}  // namespace
+
+Evidence SceneEvidence::evaluate(const Pose& pose, const PreparedModel& model, float tolerance, float model_spacing,
+                                 std::vector<std::uint32_t>* support) const {
+  const std::vector<Facing> facing = facingPoints(pose, model, to_view_, viewpoint_, cos_grazing_);
+  const std::optional<ZBuffer> front = selfOcclusion(facing, model_spacing);
   // Each facing point's verdict, in parallel (the tree queries), then counted in order.
-  enum Verdict : std::uint8_t { kHidden, kSupported, kContradicted, kUnknown };
   std::vector<Verdict> verdict(facing.size());
   std::vector<std::uint32_t> nearest(facing.size());
   tbb::parallel_for(std::size_t{0}, (facing.size() + kChunk - 1) / kChunk, [&](std::size_t k) {
@@ -572,20 +634,7 @@ Evidence SceneEvidence::evaluate(const Pose& pose, const PreparedModel& model, f
       if (c >= 0 && nearest_[c] > f.range + 2 * tolerance && std::isfinite(nearest_[c])) verdict[i] = kContradicted;
     }
   });
-  Evidence e;
-  for (std::size_t i = 0; i < facing.size(); ++i) {
-    if (verdict[i] == kHidden) continue;
-    ++e.facing;
-    e.supported += verdict[i] == kSupported;
-    e.contradicted += verdict[i] == kContradicted;
-    if (facing[i].grazing) {
-      ++e.grazing;
-      e.grazing_supported += verdict[i] == kSupported;
-      e.grazing_contradicted += verdict[i] == kContradicted;
-    }
-    if (support && verdict[i] == kSupported) support->push_back(nearest[i]);
-  }
-  return e;
+  return tally(facing, verdict, nearest, support);
 }
 
 }  // namespace binpose

@@ -120,6 +120,58 @@ void writeJson(const std::string& path, const nlohmann::json& j) {
   if (!out) throw Error(fmt::format("{}: cannot write", path));
 }
 
+/// The convex hull of the mesh's vertices about `centroid`, as Bullet collides it; `radius`: the
+/// largest distance of a vertex from the centroid.
+std::unique_ptr<btConvexHullShape> convexHull(const Mesh& mesh, const Vec3& centroid, float& radius) {
+  btConvexHullShape raw;
+  for (const Vec3& v : mesh.vertices) {
+    raw.addPoint(toBt(v - centroid), false);
+    radius = std::max(radius, (v - centroid).norm());
+  }
+  raw.setMargin(0.0005f);  // Bullet's default margin (0.04 units) would be 4 cm here
+  raw.recalcLocalAabb();
+  btShapeHull hull(&raw);
+  hull.buildHull(raw.getMargin());
+  auto part = std::make_unique<btConvexHullShape>(reinterpret_cast<const btScalar*>(hull.getVertexPointer()), hull.numVertices());
+  part->setMargin(0.0005f);
+  return part;
+}
+
+/// A settled body's pose as the model's (the body frame is the model frame shifted by the centroid), mm.
+Pose modelPose(const btRigidBody& body, const Vec3& centroid) {
+  const btTransform& t = body.getWorldTransform();
+  const btQuaternion r = t.getRotation();
+  Pose body_pose = Pose::Identity();
+  body_pose.linear() = Eigen::Quaternionf(float(r.w()), float(r.x()), float(r.y()), float(r.z())).toRotationMatrix();
+  body_pose.translation() = Vec3(float(t.getOrigin().x()), float(t.getOrigin().y()), float(t.getOrigin().z())) / kMetres;
+  return body_pose * Eigen::Translation3f(-centroid);
+}
+
+/// The pixels the mesh at `pose` (camera frame) would cover with nothing in front, seen at less
+/// than the sensor's grazing angle.
+int pixelsCovered(const Mesh& mesh, const Pose& pose, const SensorParams& sensor, float cos_grazing) {
+  const int W = sensor.width, H = sensor.height;
+  RayScene alone;
+  alone.add(mesh, pose);
+  alone.commit();
+  double u0 = W, v0 = H, u1 = -1, v1 = -1;
+  for (const Vec3& vertex : mesh.vertices) {
+    const Vec3 p = pose * vertex;
+    if (p.z() <= 0) continue;
+    const double u = sensor.fx * p.x() / p.z() + sensor.cx, v = sensor.fy * p.y() / p.z() + sensor.cy;
+    u0 = std::min(u0, u); u1 = std::max(u1, u); v0 = std::min(v0, v); v1 = std::max(v1, v);
+  }
+  int covered = 0;
+  for (int v = std::max(0, int(std::floor(v0))); v <= std::min(H - 1, int(std::ceil(v1))); ++v)
+    for (int u = std::max(0, int(std::floor(u0))); u <= std::min(W - 1, int(std::ceil(u1))); ++u) {
+      const Vec3 dir(float((u - sensor.cx) / sensor.fx), float((v - sensor.cy) / sensor.fy), 1.0f);
+      const RayScene::Hit hit = alone.cast(dir);
+      if (hit.geometry == RTC_INVALID_GEOMETRY_ID) continue;
+      if (std::abs(hit.normal.dot(dir)) / (hit.normal.norm() * dir.norm()) >= cos_grazing) ++covered;
+    }
+  return covered;
+}
+
 }  // namespace
 
 std::vector<Pose> dropIntoBin(const Mesh& mesh, int count, const BinParams& bin, float settle_seconds, std::uint64_t seed) {
@@ -138,17 +190,7 @@ std::vector<Pose> dropIntoBin(const Mesh& mesh, int count, const BinParams& bin,
   // The part: the convex hull of its vertices about its centroid (Bullet's centre of mass).
   const Vec3 centroid = surfaceCentroid(mesh);
   float radius = 0;
-  btConvexHullShape raw;
-  for (const Vec3& v : mesh.vertices) {
-    raw.addPoint(toBt(v - centroid), false);
-    radius = std::max(radius, (v - centroid).norm());
-  }
-  raw.setMargin(0.0005f);  // Bullet's default margin (0.04 units) would be 4 cm here
-  raw.recalcLocalAabb();
-  btShapeHull hull(&raw);
-  hull.buildHull(raw.getMargin());
-  auto part = std::make_unique<btConvexHullShape>(reinterpret_cast<const btScalar*>(hull.getVertexPointer()), hull.numVertices());
-  part->setMargin(0.0005f);
+  const auto part = convexHull(mesh, centroid, radius);
   const btScalar mass = 0.02f;
   btVector3 inertia(0, 0, 0);
   part->calculateLocalInertia(mass, inertia);
@@ -195,14 +237,7 @@ std::vector<Pose> dropIntoBin(const Mesh& mesh, int count, const BinParams& bin,
   for (int s = 0; s < steps; ++s) world.stepSimulation(dt, 1, dt);
 
   std::vector<Pose> poses;
-  for (btRigidBody* body : parts) {
-    const btTransform& t = body->getWorldTransform();
-    const btQuaternion r = t.getRotation();
-    Pose body_pose = Pose::Identity();
-    body_pose.linear() = Eigen::Quaternionf(float(r.w()), float(r.x()), float(r.y()), float(r.z())).toRotationMatrix();
-    body_pose.translation() = Vec3(float(t.getOrigin().x()), float(t.getOrigin().y()), float(t.getOrigin().z())) / kMetres;
-    poses.push_back(body_pose * Eigen::Translation3f(-centroid));  // model frame = body frame shifted by the centroid
-  }
+  for (btRigidBody* body : parts) poses.push_back(modelPose(*body, centroid));
   for (auto& body : bodies) world.removeRigidBody(body.get());
   return poses;
 }
@@ -267,26 +302,9 @@ SimulatedScene renderBin(const Mesh& mesh, const std::vector<Pose>& world_poses,
   for (const int o : owner)
     if (o >= 0) ++out.instances[static_cast<std::size_t>(o)].visible_pixels;
   // BOP's visib_fract: visible pixels over the pixels the instance would cover with nothing in front.
-  for (std::size_t i = 0; i < world_poses.size(); ++i) {
-    RayScene alone;
-    alone.add(mesh, out.instances[i].pose);
-    alone.commit();
-    double u0 = W, v0 = H, u1 = -1, v1 = -1;
-    for (const Vec3& vertex : mesh.vertices) {
-      const Vec3 p = out.instances[i].pose * vertex;
-      if (p.z() <= 0) continue;
-      const double u = sensor.fx * p.x() / p.z() + sensor.cx, v = sensor.fy * p.y() / p.z() + sensor.cy;
-      u0 = std::min(u0, u); u1 = std::max(u1, u); v0 = std::min(v0, v); v1 = std::max(v1, v);
-    }
-    int covered = 0;
-    for (int v = std::max(0, int(std::floor(v0))); v <= std::min(H - 1, int(std::ceil(v1))); ++v)
-      for (int u = std::max(0, int(std::floor(u0))); u <= std::min(W - 1, int(std::ceil(u1))); ++u) {
-        const Vec3 dir(float((u - sensor.cx) / sensor.fx), float((v - sensor.cy) / sensor.fy), 1.0f);
-        const RayScene::Hit hit = alone.cast(dir);
-        if (hit.geometry == RTC_INVALID_GEOMETRY_ID) continue;
-        if (std::abs(hit.normal.dot(dir)) / (hit.normal.norm() * dir.norm()) >= cos_grazing) ++covered;
-      }
-    out.instances[i].visib_fract = covered == 0 ? 0.0f : static_cast<float>(out.instances[i].visible_pixels) / static_cast<float>(covered);
+  for (SimulatedInstance& inst : out.instances) {
+    const int covered = pixelsCovered(mesh, inst.pose, sensor, cos_grazing);
+    inst.visib_fract = covered == 0 ? 0.0f : static_cast<float>(inst.visible_pixels) / static_cast<float>(covered);
   }
   return out;
 }

@@ -111,11 +111,19 @@ std::vector<SweepRow> runSweep(const SweepSettings& s, const SweepGrid& grid, co
   return rows;
 }
 
-std::vector<std::string> plotSweep(const std::string& out, const std::vector<SweepRow>& rows,
-                                   const std::vector<std::string>& names) {
-  if (names.empty() || rows.empty()) return {};
+namespace {
+
+/// One combination's sums over its scenes.
+struct Sum {
+  int runs = 0, found = 0;
+  double recall = 0, precision = 0, centroid = 0, angle = 0, ms = 0;
+};
+
+/// Writes summary.csv (the means over the scenes of each combination; time per object pooled)
+/// and recognition.csv (recognition rate in 10 % bins of visible surface); the sums by combination.
+std::map<std::vector<double>, Sum> writeSummaries(const std::string& out, const std::vector<SweepRow>& rows,
+                                                  const std::vector<std::string>& names) {
   // summary.csv: means over the scenes of each combination (time per object pooled).
-  struct Sum { int runs = 0, found = 0; double recall = 0, precision = 0, centroid = 0, angle = 0, ms = 0; };
   std::map<std::vector<double>, Sum> sums;
   std::vector<int> bin_total(10, 0), bin_found(10, 0);
   for (const SweepRow& row : rows) {
@@ -151,6 +159,15 @@ std::vector<std::string> plotSweep(const std::string& out, const std::vector<Swe
       recognition << fmt::format("{},{},{},{:.2f}\n", 10 * b + 5, bin_total[b], bin_found[b], 100.0 * bin_found[b] / bin_total[b]);
   summary.close();
   recognition.close();
+  return sums;
+}
+
+}  // namespace
+
+std::vector<std::string> plotSweep(const std::string& out, const std::vector<SweepRow>& rows,
+                                   const std::vector<std::string>& names) {
+  if (names.empty() || rows.empty()) return {};
+  const std::map<std::vector<double>, Sum> sums = writeSummaries(out, rows, names);
 
   // plots.gp: each metric against the first parameter, one curve per value of the second.
   std::ofstream gp(out + "/plots.gp");
