@@ -256,7 +256,7 @@ int runDetect(const DetectOptions& o) {
 }
 
 struct SimulateOptions {
-  std::string model = "builtin:cap", out, units = "mm", model_info;
+  std::string model = "builtin:cap", out, units = "mm", model_info, sensor = "ideal";
   int obj_id = 1;
   std::vector<float> bin;
   binpose::SimulationParams params;
@@ -275,7 +275,12 @@ void addSimulate(CLI::App& app, SimulateOptions& o) {
   s->add_option("--height", o.params.sensor.height, "Image height, px")->capture_default_str();
   s->add_option("--fx", o.params.sensor.fx, "Focal length, px (fy = fx; principal point at the centre)")->capture_default_str();
   s->add_option("--distance", o.params.sensor.distance, "Sensor to bin floor, mm")->capture_default_str();
-  s->add_option("--noise", o.params.sensor.noise_sigma, "Depth noise at 500 mm (1 sigma), mm")->capture_default_str();
+  s->add_option("--noise", o.params.sensor.noise_sigma, "Ideal sensor's depth noise at 500 mm (1 sigma), mm")->capture_default_str();
+  s->add_option("--sensor", o.sensor,
+                "Sensor model: ideal (Gaussian noise only), structured-light (Kinect v1 class), industrial "
+                "(Photoneo/Zivid class) or tof (Kinect v2 class); see include/binpose/sensor_model.hpp")
+      ->check(CLI::IsMember({"ideal", "structured-light", "industrial", "tof"}))
+      ->capture_default_str();
   s->add_option("--bin", o.bin, "Bin inside length width height, mm (default 200 200 120)")->expected(3);
 }
 
@@ -295,6 +300,7 @@ int runSimulate(SimulateOptions o) {
   const auto t0 = Clock::now();
   if (o.bin.size() == 3) o.params.bin.inner = binpose::Vec3(o.bin[0], o.bin[1], o.bin[2]);
   o.params.sensor.fy = o.params.sensor.fx;
+  o.params.sensor.model = binpose::sensorModel(binpose::parseSensorKind(o.sensor));
   o.params.sensor.cx = (o.params.sensor.width - 1) / 2.0;
   o.params.sensor.cy = (o.params.sensor.height - 1) / 2.0;
   const binpose::ModelFile file = binpose::readModelOrBuiltin(o.model, binpose::unitScale(binpose::parseUnits(o.units)));

@@ -1,6 +1,8 @@
 // Synthetic bins: Bullet drops the parts, Embree renders the depth sensor (thesis 7.1.2).
 #include <binpose/simulation.hpp>
 
+#include "sensor_effects.hpp"
+
 #include <binpose/geometry.hpp>
 #include <binpose/sampling.hpp>
 #include <binpose/shapes.hpp>
@@ -20,6 +22,8 @@
 namespace binpose {
 namespace {
 
+/// A projector ray that meets something this much short of the surface point is shadowed, mm.
+constexpr float kShadowTolerance = 0.5f;
 constexpr float kMetres = 0.001f;  // Bullet works best near metre scale: it simulates in metres
 
 btVector3 toBt(const Vec3& v) { return btVector3(v.x() * kMetres, v.y() * kMetres, v.z() * kMetres); }
@@ -73,11 +77,14 @@ class RayScene {
     unsigned geometry = RTC_INVALID_GEOMETRY_ID;
     Vec3 normal = Vec3::Zero();
   };
-  /// First hit of the ray origin + t dir, t > 0.
-  Hit cast(const Vec3& dir) const {
+  /// First hit of the ray from the origin along dir (t > 0: the point t dir).
+  Hit cast(const Vec3& dir) const { return castFrom(Vec3::Zero(), dir); }
+  /// First hit of the ray from `origin` along dir.
+  Hit castFrom(const Vec3& origin, const Vec3& dir) const {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     RTCRayHit rh{};
+    rh.ray.org_x = origin.x(); rh.ray.org_y = origin.y(); rh.ray.org_z = origin.z();
     rh.ray.dir_x = dir.x(); rh.ray.dir_y = dir.y(); rh.ray.dir_z = dir.z();
     rh.ray.tnear = 0.0f;
     rh.ray.tfar = INFINITY;
@@ -172,6 +179,47 @@ int pixelsCovered(const Mesh& mesh, const Pose& pose, const SensorParams& sensor
   return covered;
 }
 
+/// The ideal sensor's depth at pixel (u, v), mm (0: none): Gaussian noise of noise_sigma at
+/// 500 mm, growing with range^2. `geometry`: what the ray hit.
+float idealPixel(const RayScene& rays, const SensorParams& sensor, std::uint64_t seed, int u, int v, float cos_grazing,
+                 unsigned& geometry) {
+  const Vec3 dir(float((u - sensor.cx) / sensor.fx), float((v - sensor.cy) / sensor.fy), 1.0f);
+  const RayScene::Hit hit = rays.cast(dir);
+  if (hit.geometry == RTC_INVALID_GEOMETRY_ID) return 0.0f;
+  const float cos_incidence = std::abs(hit.normal.dot(dir)) / (hit.normal.norm() * dir.norm());
+  if (!(cos_incidence >= cos_grazing)) return 0.0f;  // too oblique for the sensor
+  const std::size_t pixel = static_cast<std::size_t>(v) * sensor.width + u;
+  Rng rng(seed * 0x9E3779B97F4A7C15ull + pixel);  // per pixel: same image whatever the threads
+  const float z = hit.t;  // dir.z = 1, so t is the depth
+  geometry = hit.geometry;
+  return z + sensor.noise_sigma * (z / 500.0f) * (z / 500.0f) * gaussian(rng);
+}
+
+/// A modelled sensor's depth at pixel (u, v), mm (0: none; sensor_model.hpp): the ray jittered
+/// by the lateral noise, dropped where the projector cannot see the surface, axial noise by
+/// range and angle, then the disparity's quantisation.
+float modelledPixel(const RayScene& rays, const SensorParams& sensor, std::uint64_t seed, int u, int v, float cos_grazing,
+                    unsigned& geometry) {
+  const SensorModel& m = sensor.model;
+  const std::size_t pixel = static_cast<std::size_t>(v) * sensor.width + u;
+  Rng rng(seed * 0x9E3779B97F4A7C15ull + pixel);
+  const double du = m.lateral_px * gaussian(rng), dv = m.lateral_px * gaussian(rng);
+  const Vec3 dir(float((u + du - sensor.cx) / sensor.fx), float((v + dv - sensor.cy) / sensor.fy), 1.0f);
+  const RayScene::Hit hit = rays.cast(dir);
+  if (hit.geometry == RTC_INVALID_GEOMETRY_ID) return 0.0f;
+  const float cos_incidence = std::abs(hit.normal.dot(dir)) / (hit.normal.norm() * dir.norm());
+  if (!(cos_incidence >= cos_grazing)) return 0.0f;
+  const float z = hit.t;
+  if (m.baseline > 0) {  // the projector's view of the point: anything nearer on the way casts a shadow
+    const Vec3 projector(m.baseline, 0.0f, 0.0f), to = dir * z - projector;
+    const float reach = to.norm();
+    if (rays.castFrom(projector, to / reach).t < reach - kShadowTolerance) return 0.0f;
+  }
+  const float theta = std::acos(std::min(1.0f, cos_incidence));
+  geometry = hit.geometry;
+  return quantisedDepth(m, z + axialSigma(m, z, theta) * gaussian(rng), sensor.fx);
+}
+
 }  // namespace
 
 std::vector<Pose> dropIntoBin(const Mesh& mesh, int count, const BinParams& bin, float settle_seconds, std::uint64_t seed) {
@@ -260,26 +308,27 @@ SimulatedScene renderBin(const Mesh& mesh, const std::vector<Pose>& world_poses,
 
   out.intrinsics = {sensor.fx, sensor.fy, sensor.cx, sensor.cy, sensor.depth_scale, sensor.width, sensor.height};
   const int W = sensor.width, H = sensor.height;
-  out.depth.assign(static_cast<std::size_t>(W) * H, 0);
-  std::vector<int> owner(out.depth.size(), -1);
   const float cos_grazing = std::cos(sensor.grazing_deg * float(M_PI) / 180.0f);
+  std::vector<float> depth(static_cast<std::size_t>(W) * H, 0.0f);  // mm; 0: no return
+  std::vector<unsigned> seen(depth.size(), RTC_INVALID_GEOMETRY_ID);
   tbb::parallel_for(0, H, [&](int v) {
     for (int u = 0; u < W; ++u) {
-      const Vec3 dir(float((u - sensor.cx) / sensor.fx), float((v - sensor.cy) / sensor.fy), 1.0f);
-      const RayScene::Hit hit = rays.cast(dir);
-      if (hit.geometry == RTC_INVALID_GEOMETRY_ID) continue;
-      const float cos_incidence = std::abs(hit.normal.dot(dir)) / (hit.normal.norm() * dir.norm());
-      if (!(cos_incidence >= cos_grazing)) continue;  // too oblique for the sensor
       const std::size_t pixel = static_cast<std::size_t>(v) * W + u;
-      Rng rng(seed * 0x9E3779B97F4A7C15ull + pixel);  // per pixel: same image whatever the threads
-      const float z = hit.t;  // dir.z = 1, so t is the depth
-      const float noisy = z + sensor.noise_sigma * (z / 500.0f) * (z / 500.0f) * gaussian(rng);
-      const double raw = std::round(noisy / sensor.depth_scale);
-      if (raw < 1 || raw > 65535) continue;
-      out.depth[pixel] = static_cast<std::uint16_t>(raw);
-      if (hit.geometry < world_poses.size()) owner[pixel] = static_cast<int>(hit.geometry);
+      depth[pixel] = sensor.model.kind == SensorKind::Ideal ? idealPixel(rays, sensor, seed, u, v, cos_grazing, seen[pixel])
+                                                            : modelledPixel(rays, sensor, seed, u, v, cos_grazing, seen[pixel]);
     }
   });
+  applyEdgeEffects(depth, W, H, sensor.model, seed);
+  applyMultipath(depth, W, H, sensor.model);
+  out.depth.assign(depth.size(), 0);
+  std::vector<int> owner(out.depth.size(), -1);
+  for (std::size_t pixel = 0; pixel < depth.size(); ++pixel) {
+    if (seen[pixel] == RTC_INVALID_GEOMETRY_ID) continue;
+    const double raw = std::round(depth[pixel] / sensor.depth_scale);
+    if (raw < 1 || raw > 65535) continue;
+    out.depth[pixel] = static_cast<std::uint16_t>(raw);
+    if (seen[pixel] < world_poses.size()) owner[pixel] = static_cast<int>(seen[pixel]);
+  }
   out.cloud = depthToCloud(out.depth, W, H, out.intrinsics);
 
   // Visible fraction: even samples of the surface, each visible if the ray to it hits it first.

@@ -151,3 +151,83 @@ TEST(Matching, OneToOneAndThreshold) {
   EXPECT_DOUBLE_EQ(r.recall_over_half_visible, 1.0);
   EXPECT_DOUBLE_EQ(r.ms_per_object, 30.0);
 }
+
+// ---- sensor models ------------------------------------------------------------------------------
+
+namespace {
+
+/// The depths (mm) of the pixels of `scene` inside the rectangle [u0, u1) x [v0, v1); 0: none.
+std::vector<float> depthsIn(const SimulatedScene& scene, int u0, int u1, int v0, int v1) {
+  std::vector<float> out;
+  for (int v = v0; v < v1; ++v)
+    for (int u = u0; u < u1; ++u)
+      out.push_back(static_cast<float>(scene.depth[static_cast<std::size_t>(v) * scene.intrinsics.width + u] *
+                                       scene.intrinsics.depth_scale));
+  return out;
+}
+
+/// Mean and standard deviation of the non-zero values.
+std::pair<double, double> meanAndSigma(const std::vector<float>& values) {
+  double sum = 0, sum2 = 0;
+  int n = 0;
+  for (const float v : values)
+    if (v > 0) sum += v, sum2 += double(v) * v, ++n;
+  const double mean = sum / n;
+  return {mean, std::sqrt(std::max(0.0, sum2 / n - mean * mean))};
+}
+
+SensorParams sensorAt(float distance, SensorKind kind) {
+  SensorParams s;
+  s.distance = distance;
+  s.model = sensorModel(kind);
+  return s;
+}
+
+}  // namespace
+
+// The structured-light model on the empty bin's floor, 800 mm away, seen head-on: Nguyen et al.'s
+// axial noise there is 1.2 + 1.9 (0.8 - 0.4)^2 = 1.50 mm, and the depth comes from a disparity
+// quantised to 1/8 px, so the floor reads in steps of z^2 / (f b) / 8 = 1.94 mm (f = 550 px,
+// b = 75 mm). The ideal sensor's 0.1 mm at 500 mm is 0.26 mm there.
+TEST(SensorModel, StructuredLightFloorNoiseAndDisparitySteps) {
+  const SimulatedScene sl = renderBin(builtinPart("cap"), {}, BinParams{}, sensorAt(800, SensorKind::StructuredLight), 3);
+  const std::vector<float> floor = depthsIn(sl, 270, 370, 190, 290);  // the middle of the floor
+  const auto [mean, sigma] = meanAndSigma(floor);
+  EXPECT_NEAR(mean, 800.0, 0.5);
+  const double expected = std::sqrt(1.50 * 1.50 + 1.94 * 1.94 / 12);  // noise, then the step's rounding
+  EXPECT_NEAR(sigma, expected, 0.25 * expected);
+  std::vector<float> levels;
+  for (const float d : floor)
+    if (d > 0) levels.push_back(d);
+  std::sort(levels.begin(), levels.end());
+  levels.erase(std::unique(levels.begin(), levels.end(), [](float a, float b) { return std::abs(a - b) < 0.3f; }), levels.end());
+  ASSERT_GT(levels.size(), 2u);
+  for (std::size_t i = 1; i < levels.size(); ++i) EXPECT_GT(levels[i] - levels[i - 1], 1.5f) << "no disparity step at " << levels[i];
+  const SimulatedScene ideal = renderBin(builtinPart("cap"), {}, BinParams{}, sensorAt(800, SensorKind::Ideal), 3);
+  EXPECT_NEAR(meanAndSigma(depthsIn(ideal, 270, 370, 190, 290)).second, 0.1 * 1.6 * 1.6, 0.05);
+}
+
+// A 60 x 40 x 100 mm box standing on the floor, 800 mm below the camera. The projector, 75 mm
+// to the camera's +x, cannot see the floor from 4 to 15 mm beyond the box's -x edge (the camera
+// sees it from 4 mm on), so a strip 6-13 mm out reads nothing there; on the +x side it is lit.
+// Edge drop-outs strike both sides alike: the difference is the shadow's.
+TEST(SensorModel, StructuredLightProjectorShadowsOneSideOfAPart) {
+  const Pose standing = worldPose(Vec3(0, 0, 50));
+  const Mesh box = makeBox({60.0f, 40.0f, 100.0f});
+  const auto uAt = [](float x) { return static_cast<int>(std::lround(319.5 + 550.0 * x / 800.0)); };  // on the floor
+  const auto missing = [&](const SimulatedScene& scene, float x0, float x1) {
+    const std::vector<float> d = depthsIn(scene, uAt(x0), uAt(x1), 230, 250);
+    return static_cast<double>(std::count(d.begin(), d.end(), 0.0f)) / static_cast<double>(d.size());
+  };
+  const SimulatedScene sl = renderBin(box, {standing}, BinParams{}, sensorAt(800, SensorKind::StructuredLight), 5);
+  EXPECT_GT(missing(sl, -43, -36), 0.9) << "the floor beyond the box's -x edge should be in the projector's shadow";
+  EXPECT_LT(missing(sl, 36, 43), 0.2);
+  const SimulatedScene ideal = renderBin(box, {standing}, BinParams{}, sensorAt(800, SensorKind::Ideal), 5);
+  EXPECT_EQ(missing(ideal, -43, -36), 0.0) << "the ideal sensor has no projector";
+}
+
+TEST(SensorModel, NamesParseAndUnknownIsRefused) {
+  for (const SensorKind k : {SensorKind::Ideal, SensorKind::StructuredLight, SensorKind::Industrial, SensorKind::TimeOfFlight})
+    EXPECT_EQ(parseSensorKind(sensorKindName(k)), k);
+  EXPECT_THROW(parseSensorKind("kinect"), Error);
+}

@@ -4,6 +4,7 @@
 // casting) with noise and grazing-angle dropout.
 #include <binpose/io.hpp>
 #include <binpose/pose.hpp>
+#include <binpose/sensor_model.hpp>
 
 #include <cstdint>
 #include <string>
@@ -20,6 +21,10 @@ struct SensorParams {
   float noise_sigma = 0.1f;      ///< depth noise (1 sigma) at 500 mm, mm; grows with range^2
   float grazing_deg = 80.0f;     ///< pixels seeing a surface more obliquely than this are dropped
   double depth_scale = 0.1;      ///< mm per depth unit in the PNG (BOP convention)
+  /// What the sensor does beyond noise_sigma (sensor_model.hpp). The ideal sensor: Gaussian
+  /// noise of noise_sigma at 500 mm growing with range^2, and nothing else; any other kind
+  /// replaces that noise with its own.
+  SensorModel model;
 };
 
 struct BinParams {
