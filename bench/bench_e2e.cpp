@@ -4,7 +4,9 @@
 //   binpose_bench_e2e [--data ../shared/data] [--cache out/bench] [--out bench/results.json]
 //                     [--repeats 5] [--inputs a,b] [--methods a,b] [--seed-offset N]
 //
-// Inputs: seeded simulated bins (16 and 32 copies of the built-in cap, IPD obj 0 and obj 8) and
+// Inputs: seeded simulated bins (16 and 32 copies of the built-in cap, IPD obj 0 and obj 8, seen by
+// the ideal sensor; 16 of the cap, IPD obj 0, 8 and 1 seen by the structured-light and industrial
+// sensor models, -sl and -ind) and
 // the real scans UWA rs1 (parasaurolophus) and PCL milk (carton). Each (input, method) runs in a
 // child process (this program re-executed with --run) so that its peak memory is its own.
 // Timings: training once; detection the median of --repeats runs, file reading excluded,
@@ -55,7 +57,16 @@ struct InputSpec {
   std::string obj_id;    ///< models_info entry of the part (IPD) or "" (cap: its own)
   int instances = 0;     ///< simulated copies (0: a real scan)
   std::uint64_t seed = 0;
+  SensorKind sensor = SensorKind::Ideal;  ///< the simulated sensor (sensor_model.hpp)
+  float distance = 500;  ///< sensor to bin floor, mm
+  int width = 640, height = 480;
+  double fx = 550;
 };
+
+/// A structured-light sensor (Kinect v1 class) 800 mm above the floor: the parts at 0.7-0.8 m.
+constexpr float kStructuredLightDistance = 800;
+/// An industrial sensor 1 m above the floor at 1280 x 960 px (about 0.9 mm a pixel there).
+constexpr float kIndustrialDistance = 1000;
 
 const std::vector<InputSpec>& inputSpecs() {
   static const std::vector<InputSpec> specs = {
@@ -65,6 +76,14 @@ const std::vector<InputSpec>& inputSpecs() {
       {"ipd0-32", "ipd_parts/models/obj_000000.ply", "0", 32, 104},
       {"ipd8-16", "ipd_parts/models/obj_000008.ply", "8", 16, 105},
       {"ipd8-32", "ipd_parts/models/obj_000008.ply", "8", 32, 106},
+      {"cap-16-sl", "builtin:cap", "", 16, 101, SensorKind::StructuredLight, kStructuredLightDistance},
+      {"ipd0-16-sl", "ipd_parts/models/obj_000000.ply", "0", 16, 103, SensorKind::StructuredLight, kStructuredLightDistance},
+      {"ipd8-16-sl", "ipd_parts/models/obj_000008.ply", "8", 16, 105, SensorKind::StructuredLight, kStructuredLightDistance},
+      {"ipd1-16-sl", "ipd_parts/models/obj_000001.ply", "1", 16, 107, SensorKind::StructuredLight, kStructuredLightDistance},
+      {"cap-16-ind", "builtin:cap", "", 16, 101, SensorKind::Industrial, kIndustrialDistance, 1280, 960, 1100},
+      {"ipd0-16-ind", "ipd_parts/models/obj_000000.ply", "0", 16, 103, SensorKind::Industrial, kIndustrialDistance, 1280, 960, 1100},
+      {"ipd8-16-ind", "ipd_parts/models/obj_000008.ply", "8", 16, 105, SensorKind::Industrial, kIndustrialDistance, 1280, 960, 1100},
+      {"ipd1-16-ind", "ipd_parts/models/obj_000001.ply", "1", 16, 107, SensorKind::Industrial, kIndustrialDistance, 1280, 960, 1100},
       {"uwa-rs1", "uwa/parasaurolophus_6700.ply", "", 0, 0},
       {"pcl-milk", "pcl_milk/milk.pcd", "", 0, 0},
   };
@@ -142,6 +161,13 @@ void ensureScene(const Options& o, const InputSpec& s) {
   SimulationParams sp;
   sp.instances = s.instances;
   sp.seed = binSeed(o, s);
+  sp.sensor.model = sensorModel(s.sensor);
+  sp.sensor.distance = s.distance;
+  sp.sensor.width = s.width;
+  sp.sensor.height = s.height;
+  sp.sensor.fx = sp.sensor.fy = s.fx;
+  sp.sensor.cx = (s.width - 1) / 2.0;
+  sp.sensor.cy = (s.height - 1) / 2.0;
   fs::create_directories(dir);
   writeScene(dir, simulateBin(file.mesh, sp), s.model, defaultModelInfo(s.model, file.mesh));
 }
