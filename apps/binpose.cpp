@@ -203,6 +203,8 @@ std::string resultJson(const binpose::DetectionResult& r, const binpose::Detecti
                     {"total", r.timing.total_ms}};
   j["scene_points"] = r.scene_points;
   j["sampled_points"] = r.sampled_points;
+  j["noise_mm"] = r.noise_mm;
+  j["k_normals"] = r.k_normals;
   j["plane_points"] = r.plane_points;
   j["subgroups"] = r.subgroups;
   j["subgroups_run"] = r.subgroups_run;

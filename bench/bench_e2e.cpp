@@ -217,6 +217,8 @@ struct Outcome {
   std::vector<double> detect_ms;
   std::vector<Pose> poses;
   std::vector<DetectionTiming> stages;  ///< binpose's stage times, one per run
+  float noise_mm = 0;  ///< binpose's estimate of the scan's noise
+  int k_normals = 0;   ///< the normals' neighbours it used
 };
 
 Outcome runBinpose(const OrientedModel& model, const PointCloud& scan, const std::string& preset, int repeats,
@@ -233,6 +235,8 @@ Outcome runBinpose(const OrientedModel& model, const PointCloud& scan, const std
     const DetectionResult result = detector.detect(scan);
     out.detect_ms.push_back(msSince(t));
     out.stages.push_back(result.timing);
+    out.noise_mm = result.noise_mm;
+    out.k_normals = result.k_normals;
     if (r == 0)
       for (const Detection& d : result.detections) out.poses.push_back(d.pose);
   }
@@ -364,6 +368,8 @@ int runOne(const Options& o) {
     poses.push_back(row);
   }
   j["poses"] = poses;
+  j["noise_mm"] = r.noise_mm;
+  j["k_normals"] = r.k_normals;
   if (!r.stages.empty()) {  // binpose's stages, each the median over the runs
     const auto stage = [&](double DetectionTiming::*field) {
       std::vector<double> v;

@@ -54,6 +54,8 @@ void shareTimes(const ScheduleTimes& t, double setup_ms, double loop_ms, Detecti
 /// The counts of each stage into the result.
 void countStages(const PreparedScan& prepared, std::size_t groups, const MatchState& state, DetectionResult& result) {
   result.sampled_points = prepared.sampled_points;
+  result.noise_mm = prepared.noise.sigma;
+  result.k_normals = prepared.params.k_normals;
   result.plane_points = prepared.plane_points;
   result.subgroups = groups;
   result.subgroups_run = state.subgroups_run;
@@ -92,9 +94,9 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   DetectionResult result;
   result.scene_points = scan.size();
   if (scan.empty()) return result;
-  const DetectionParams& p = params_;
-  PreparedScan prepared;  // 5.2.1-5.2.2: sub-sampled, oriented, the bin's planes apart
-  prepareScan(scan, p, prepared);
+  PreparedScan prepared;  // 5.2.1-5.2.2: sub-sampled, oriented, the bin's planes apart; the noise measured
+  prepareScan(scan, params_, prepared);
+  const DetectionParams& p = prepared.params;  // adapted to the scan's noise
   const PreparedScene& scene = prepared.scene;
   std::vector<std::vector<std::uint32_t>> groups;  // 5.2.3-5.2.4, beside the local voters' set-up
   LocalVotes local;

@@ -64,6 +64,7 @@ void visit(json& j, DetectionParams& p, bool write) {
   field(j, "mirror_retries", p.mirror_retries, write);
   field(j, "use_cyclic_symmetry", p.use_cyclic_symmetry, write);
   field(j, "seed", p.seed, write);
+  field(j, "adapt_to_noise", p.adapt_to_noise, write);
   if (write) {
     j["subsampling"] = p.subsampling == Subsampling::Random ? "random" : "voxel";
     j["viewpoint"] = {p.viewpoint.x(), p.viewpoint.y(), p.viewpoint.z()};
@@ -95,6 +96,7 @@ DetectionParams thesisPreset() {
   DetectionParams p;
   p.subsampling = Subsampling::Random;
   p.k_normals = 6;
+  p.adapt_to_noise = false;
   p.remove_planes = false;
   p.candidates_per_point = 1;
   p.candidate_spacing = 0.0f;

@@ -17,6 +17,8 @@ namespace {
 
 /// Pending fits finished a few at a time, side by side.
 constexpr std::size_t kFitsPerTask = 16;
+/// The most neighbours the noise estimate asks for at once.
+constexpr std::size_t kMaxNoiseQuery = 32;
 
 /// The scene without the points of the bin's floor and walls. Normals left pending (NaN, their
 /// fits in `fits` by place among the chosen points `chosen`, of which the scene's are a part)
@@ -78,14 +80,38 @@ Points orientedNormals(const PointCloud& scan, const DetectionParams& p, Prepare
   std::vector<std::uint32_t> deferred;
   Points normals;
   std::atomic<const PointGrid*> grid_ready{nullptr};  // the pixels' misses go to the grid once it is built
+  // The noise is measured before the normals, whose k depends on it: through the pixels in a
+  // depth image, else through the grid once it is built.
+  // Only a depth image's values are adapted: its neighbourhoods are the sensor's pixels. In an
+  // unorganized cloud (merged or resampled views, a world frame) the residuals mix the noise
+  // with the sampling's structure; its noise is measured and reported, the values kept.
+  const auto measure = [&](const NeighbourQuery& query, bool adapt) {
+    out.noise = estimateNoise(scan.points, chosen, query);
+    out.params = adapt && p.adapt_to_noise ? adaptedToNoise(p, out.noise) : p;
+  };
+  const auto normalsFor = [&] {
+    normals = pixelNormals(*out.pixels, scan.points, chosen, out.params.k_normals, p.viewpoint, deferred, &grid_ready, late);
+  };
   tbb::parallel_invoke(
       [&] { grid_ready.store(&out.grid.emplace(scan.points, 2.0f * pixelSpacing(scan)), std::memory_order_release); },
       [&] {
         chosen = subsampleScene(scan.points, p);
         out.pixels.emplace(scan);
-        normals = pixelNormals(*out.pixels, scan.points, chosen, p.k_normals, p.viewpoint, deferred, &grid_ready, late);
+        if (!out.pixels->usable()) return;
+        measure([&](std::uint32_t i, std::size_t k, std::uint32_t* idx) {
+          float d2[kMaxNoiseQuery];
+          return k <= kMaxNoiseQuery && out.pixels->knn(i, k, idx, d2) ? k : std::size_t{0};
+        }, true);
+        normalsFor();
       });
-  finishNormals(*out.grid, scan.points, chosen, deferred, p.k_normals, p.viewpoint, normals, late);
+  if (!out.pixels->usable()) {  // an unorganized scan: the grid answers every search
+    measure([&](std::uint32_t i, std::size_t k, std::uint32_t* idx) {
+      float d2[kMaxNoiseQuery];
+      return k <= kMaxNoiseQuery ? out.grid->knn(scan.points[i], k, idx, d2) : std::size_t{0};
+    }, false);
+    normalsFor();
+  }
+  finishNormals(*out.grid, scan.points, chosen, deferred, out.params.k_normals, p.viewpoint, normals, late);
   return normals;
 }
 
@@ -107,10 +133,11 @@ void removePlanes(const PointCloud& scan, const DetectionParams& p, std::span<co
 
 }  // namespace
 
-void prepareScan(const PointCloud& scan, const DetectionParams& p, PreparedScan& out) {
+void prepareScan(const PointCloud& scan, const DetectionParams& user, PreparedScan& out) {
   std::vector<std::uint32_t> chosen;
   std::vector<PendingFit> fits;
-  Points normals = orientedNormals(scan, p, out, chosen, p.remove_planes ? &fits : nullptr);
+  Points normals = orientedNormals(scan, user, out, chosen, user.remove_planes ? &fits : nullptr);
+  const DetectionParams& p = out.params;  // adapted to the noise from here on
   out.scene = orientedScene(scan.points, chosen, normals);
   out.sampled_points = out.scene.points.size();
   // The bin's planes and the score's view of the scan side by side.

@@ -8,6 +8,8 @@
 #include <binpose/refine.hpp>
 #include <binpose/scene.hpp>
 
+#include "noise.hpp"
+
 #include <cstddef>
 #include <optional>
 
@@ -24,6 +26,8 @@ struct PreparedScan {
   std::optional<SceneEvidence> evidence;  ///< the score's view of the scan, the planes as background
   std::size_t sampled_points = 0;         ///< oriented points after sub-sampling
   std::size_t plane_points = 0;           ///< ... of them on the bin's planes, left out of `scene`
+  NoiseEstimate noise;                    ///< the scan's, from plane fits on a sample of it
+  DetectionParams params;                 ///< the parameters adapted to the noise (adapt_to_noise), for every stage
 };
 
 /// Sub-samples the scan to rho_sub, fits normals over k_normals neighbours facing the viewpoint,

@@ -25,6 +25,10 @@ struct DetectionParams {
   int k_normals = 8;          ///< k: neighbours of a scene normal's plane fit in the full scan (5.2.2; the thesis: 6)
   Vec3 viewpoint = Vec3::Zero();  ///< sensor origin in the scan's frame, mm (normals face it)
   std::uint64_t seed = 1;     ///< seed of the random sub-sampling
+  /// Measure a depth image's noise and raise what depends on it for a noisy one (k_normals,
+  /// e_gmax, plane_tolerance, verify_tolerance; noise.cpp); a clean scan keeps the values as
+  /// given, and so does an unorganized cloud (its noise is only reported).
+  bool adapt_to_noise = true;
   /// Take the bin's floor and walls (connected flat patches of at least plane_min_area) out of
   /// the voting points (planes.hpp); they stay in the scan for ICP and verification.
   bool remove_planes = true;

@@ -1,0 +1,79 @@
+// Noise of a scan from the residuals of plane fits over small neighbourhoods.
+#include "noise.hpp"
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+namespace binpose {
+namespace {
+
+/// Plane fits the estimate rests on: enough for a steady median, few enough to cost nothing.
+constexpr std::size_t kNoiseSamples = 256;
+/// Neighbours of a fit: the default k of the normals, so that the reach is the normals' too.
+constexpr std::size_t kNoiseNeighbours = 8;
+
+/// Noise over reach of a k = 8 fit under which its normal is sound; noisier scans fit more neighbours.
+constexpr float kSoundTilt = 0.08f;
+/// The most neighbours a noisy scan's normals fit (the pixel search's limit).
+constexpr int kMostNeighbours = 32;
+/// e_gmax and the plane tolerance at least this many sigmas: two noisy points' distance varies by
+/// about sqrt(2) sigma, a plane's points lie within about 2 sigma of it.
+constexpr float kSigmasOfConsistency = 3.3f;
+/// The verification's tolerance at least this many sigmas.
+constexpr float kSigmasOfSupport = 2.2f;
+
+float median(std::vector<float>& v) {
+  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
+}  // namespace
+
+NoiseEstimate estimateNoise(const Points& cloud, std::span<const std::uint32_t> chosen, const NeighbourQuery& neighbours) {
+  NoiseEstimate out;
+  if (chosen.empty()) return out;
+  const std::size_t step = std::max<std::size_t>(1, chosen.size() / kNoiseSamples);
+  std::vector<float> sigmas, reaches;
+  std::uint32_t idx[kNoiseNeighbours];
+  for (std::size_t s = 0; s < chosen.size(); s += step) {
+    const std::uint32_t i = chosen[s];
+    if (neighbours(i, kNoiseNeighbours, idx) < kNoiseNeighbours) continue;
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (const auto j : idx) c += cloud[j].cast<double>();
+    c /= double(kNoiseNeighbours);
+    Eigen::Matrix3d W = Eigen::Matrix3d::Zero();
+    double reach = 0;
+    for (const auto j : idx) {
+      const Eigen::Vector3d d = cloud[j].cast<double>() - c;
+      W += d * d.transpose();
+      reach = std::max(reach, (cloud[j] - cloud[i]).cast<double>().norm());
+    }
+    const double lambda0 = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(W, Eigen::EigenvaluesOnly).eigenvalues()(0);
+    sigmas.push_back(static_cast<float>(std::sqrt(std::max(0.0, lambda0) / double(kNoiseNeighbours - 3))));
+    reaches.push_back(static_cast<float>(reach));
+  }
+  if (sigmas.empty()) return out;
+  out.samples = static_cast<int>(sigmas.size());
+  out.sigma = median(sigmas);
+  out.reach = median(reaches);
+  return out;
+}
+
+DetectionParams adaptedToNoise(const DetectionParams& p, const NoiseEstimate& noise) {
+  DetectionParams a = p;
+  if (noise.samples == 0 || !(noise.reach > 0)) return a;
+  const float tilt = noise.sigma / noise.reach;
+  if (tilt > kSoundTilt) {
+    const auto k = static_cast<int>(std::lround(static_cast<float>(p.k_normals) * tilt / kSoundTilt));
+    a.k_normals = std::clamp(k, p.k_normals, std::max(p.k_normals, kMostNeighbours));
+  }
+  a.e_gmax = std::max(p.e_gmax, kSigmasOfConsistency * noise.sigma);
+  a.plane_tolerance = std::max(p.plane_tolerance, kSigmasOfConsistency * noise.sigma);
+  a.verify_tolerance = std::max(p.verify_tolerance, kSigmasOfSupport * noise.sigma);
+  return a;
+}
+
+}  // namespace binpose
