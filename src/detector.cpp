@@ -7,20 +7,17 @@
 #include "model_shape.hpp"
 #include "part_symmetry.hpp"
 #include "scan_preparation.hpp"
+#include "stopwatch.hpp"
 #include "subgroup_matcher.hpp"
 
 #include <binpose/planes.hpp>
 
 #include <algorithm>
-#include <chrono>
 #include <numeric>
 #include <tbb/parallel_invoke.h>
 
 namespace binpose {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
 /// The near-model grid's cell: the removal distance, and at least the same-place tolerance.
 constexpr float kShapeCellShare = 0.1f;

@@ -2,9 +2,9 @@
 #include "group_schedule.hpp"
 
 #include "removal.hpp"
+#include "stopwatch.hpp"
 
 #include <algorithm>
-#include <chrono>
 #include <tbb/blocked_range.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
@@ -13,9 +13,6 @@
 
 namespace binpose {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
 /// Sub-groups per batch and thread: enough to keep every thread busy while few of a batch's
 /// outcomes are wasted by an earlier one's removal.

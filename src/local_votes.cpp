@@ -1,7 +1,7 @@
 // Set-up of the local votes: the voter over the scene and its reference points.
 #include "local_votes.hpp"
 
-#include <chrono>
+#include "stopwatch.hpp"
 
 namespace binpose {
 
@@ -9,7 +9,7 @@ LocalVotes makeLocalVotes(const ModelDatabase& db, const PreparedScene& scene, c
                           const PartSymmetry& symmetry) {
   LocalVotes out;
   if (!p.local_votes) return out;
-  const auto t0 = std::chrono::steady_clock::now();
+  const auto t0 = Clock::now();
   std::vector<std::uint32_t> partners;
   if (p.partner_spacing > 0) partners = voxelSubsample(scene.points, p.partner_spacing);
   out.voter =
@@ -18,7 +18,7 @@ LocalVotes makeLocalVotes(const ModelDatabase& db, const PreparedScene& scene, c
   out.may_vote.assign(scene.points.size(), p.voter_spacing > 0 ? 0 : 1);
   if (p.voter_spacing > 0)
     for (const auto i : voxelSubsample(scene.points, p.voter_spacing)) out.may_vote[i] = 1;
-  out.setup_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  out.setup_ms = msSince(t0);
   return out;
 }
 

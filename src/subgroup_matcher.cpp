@@ -1,17 +1,15 @@
 // One sub-group: votes, clique, pose (thesis 4.3-4.6, 5.2.5), then pre-screen, ICP and score.
 #include "subgroup_matcher.hpp"
 
+#include "stopwatch.hpp"
+
 #include <binpose/clique.hpp>
 #include <binpose/pose.hpp>
 
 #include <algorithm>
-#include <chrono>
 
 namespace binpose {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
 void reset(GroupOutcome& out, bool all_voters) {
   out.members.clear();
