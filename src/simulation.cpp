@@ -127,6 +127,24 @@ void writeJson(const std::string& path, const nlohmann::json& j) {
   if (!out) throw Error(fmt::format("{}: cannot write", path));
 }
 
+/// The ray from the camera through image point (u, v), px (dir.z = 1, so a hit's t is its depth),
+/// and what it meets first.
+struct SensorRay {
+  Vec3 dir;
+  RayScene::Hit hit;
+  /// |cos| of the angle between the ray and the surface it meets.
+  [[nodiscard]] float cosIncidence() const { return std::abs(hit.normal.dot(dir)) / (hit.normal.norm() * dir.norm()); }
+  /// True when it meets a surface the sensor sees: at less than the grazing angle.
+  [[nodiscard]] bool seen(float cos_grazing) const {
+    return hit.geometry != RTC_INVALID_GEOMETRY_ID && cosIncidence() >= cos_grazing;
+  }
+};
+
+SensorRay castThrough(const RayScene& rays, const SensorParams& sensor, double u, double v) {
+  const Vec3 dir(float((u - sensor.cx) / sensor.fx), float((v - sensor.cy) / sensor.fy), 1.0f);
+  return {dir, rays.cast(dir)};
+}
+
 /// The convex hull of the mesh's vertices about `centroid`, as Bullet collides it; `radius`: the
 /// largest distance of a vertex from the centroid.
 std::unique_ptr<btConvexHullShape> convexHull(const Mesh& mesh, const Vec3& centroid, float& radius) {
@@ -171,10 +189,7 @@ int pixelsCovered(const Mesh& mesh, const Pose& pose, const SensorParams& sensor
   int covered = 0;
   for (int v = std::max(0, int(std::floor(v0))); v <= std::min(H - 1, int(std::ceil(v1))); ++v)
     for (int u = std::max(0, int(std::floor(u0))); u <= std::min(W - 1, int(std::ceil(u1))); ++u) {
-      const Vec3 dir(float((u - sensor.cx) / sensor.fx), float((v - sensor.cy) / sensor.fy), 1.0f);
-      const RayScene::Hit hit = alone.cast(dir);
-      if (hit.geometry == RTC_INVALID_GEOMETRY_ID) continue;
-      if (std::abs(hit.normal.dot(dir)) / (hit.normal.norm() * dir.norm()) >= cos_grazing) ++covered;
+      covered += castThrough(alone, sensor, u, v).seen(cos_grazing);
     }
   return covered;
 }
@@ -183,11 +198,9 @@ int pixelsCovered(const Mesh& mesh, const Pose& pose, const SensorParams& sensor
 /// 500 mm, growing with range^2. `geometry`: what the ray hit.
 float idealPixel(const RayScene& rays, const SensorParams& sensor, std::uint64_t seed, int u, int v, float cos_grazing,
                  unsigned& geometry) {
-  const Vec3 dir(float((u - sensor.cx) / sensor.fx), float((v - sensor.cy) / sensor.fy), 1.0f);
-  const RayScene::Hit hit = rays.cast(dir);
-  if (hit.geometry == RTC_INVALID_GEOMETRY_ID) return 0.0f;
-  const float cos_incidence = std::abs(hit.normal.dot(dir)) / (hit.normal.norm() * dir.norm());
-  if (!(cos_incidence >= cos_grazing)) return 0.0f;  // too oblique for the sensor
+  const SensorRay ray = castThrough(rays, sensor, u, v);
+  if (!ray.seen(cos_grazing)) return 0.0f;
+  const RayScene::Hit& hit = ray.hit;
   const std::size_t pixel = static_cast<std::size_t>(v) * sensor.width + u;
   Rng rng(seed * 0x9E3779B97F4A7C15ull + pixel);  // per pixel: same image whatever the threads
   const float z = hit.t;  // dir.z = 1, so t is the depth
@@ -204,18 +217,17 @@ float modelledPixel(const RayScene& rays, const SensorParams& sensor, std::uint6
   const std::size_t pixel = static_cast<std::size_t>(v) * sensor.width + u;
   Rng rng(seed * 0x9E3779B97F4A7C15ull + pixel);
   const double du = m.lateral_px * gaussian(rng), dv = m.lateral_px * gaussian(rng);
-  const Vec3 dir(float((u + du - sensor.cx) / sensor.fx), float((v + dv - sensor.cy) / sensor.fy), 1.0f);
-  const RayScene::Hit hit = rays.cast(dir);
-  if (hit.geometry == RTC_INVALID_GEOMETRY_ID) return 0.0f;
-  const float cos_incidence = std::abs(hit.normal.dot(dir)) / (hit.normal.norm() * dir.norm());
-  if (!(cos_incidence >= cos_grazing)) return 0.0f;
+  const SensorRay ray = castThrough(rays, sensor, u + du, v + dv);
+  if (!ray.seen(cos_grazing)) return 0.0f;
+  const RayScene::Hit& hit = ray.hit;
+  const Vec3& dir = ray.dir;
   const float z = hit.t;
   if (m.baseline > 0) {  // the projector's view of the point: anything nearer on the way casts a shadow
     const Vec3 projector(m.baseline, 0.0f, 0.0f), to = dir * z - projector;
     const float reach = to.norm();
     if (rays.castFrom(projector, to / reach).t < reach - kShadowTolerance) return 0.0f;
   }
-  const float theta = std::acos(std::min(1.0f, cos_incidence));
+  const float theta = std::acos(std::min(1.0f, ray.cosIncidence()));
   geometry = hit.geometry;
   return quantisedDepth(m, z + axialSigma(m, z, theta) * gaussian(rng), sensor.fx);
 }
