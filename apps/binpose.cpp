@@ -89,10 +89,9 @@ int runTrain(const TrainOptions& o) {
 struct DetectOptions {
   std::string model, scene, intrinsics, image_id, out, preset = "default", params_file, render, export_ply;
   std::string units = "mm", model_units = "mm";
-  std::optional<int> max_instances, C_n, k_normals, candidates;
+  std::optional<int> max_instances, C_n, k_normals;
   std::optional<float> r, rho_sub, eta, e_gmax, sigma_dist, min_score;
-  std::optional<std::string> subsampling;
-  std::optional<bool> refine, verify;
+  std::optional<bool> refine, verify, symmetry;
   std::vector<float> viewpoint;
   std::optional<std::uint64_t> seed;
   int model_points = 4000;
@@ -120,13 +119,11 @@ void addDetect(CLI::App& app, DetectOptions& o) {
   d->add_option("--rho-sub", o.rho_sub, "Scene density after sub-sampling, points/mm^2 (default 0.06 x (60 mm/diameter)^2)");
   d->add_option("--eta", o.eta, "Grid spacing eta, mm (default 15 mm x diameter/60 mm)");
   d->add_option("--e-gmax", o.e_gmax, "Geometric consistency limit e_gmax, mm (default 1.5 mm x diameter/60 mm)");
-  d->add_option("--c-n", o.C_n, "Smallest accepted clique C_n (default 8)");
+  d->add_option("--c-n", o.C_n, "Smallest accepted clique C_n (default 6; the thesis: 8)");
   d->add_option("--sigma-dist", o.sigma_dist, "Removal distance sigma_dist, mm (default 6 mm x diameter/60 mm)");
-  d->add_option("--k-normals", o.k_normals, "Neighbours of a scene normal's plane fit (default 6)");
-  d->add_option("--subsampling", o.subsampling, "random (thesis) or voxel")->check(CLI::IsMember({"random", "voxel"}));
-  d->add_option("--candidates-per-point", o.candidates,
-                "Model points kept per scene point (default 1, eq. 12; about 8 for bodies of revolution)");
+  d->add_option("--k-normals", o.k_normals, "Neighbours of a scene normal's plane fit (default 8, raised for a noisy depth image; the thesis: 6)");
   d->add_option("--refine", o.refine, "ICP refinement on/off (true|false)");
+  d->add_option("--symmetry", o.symmetry, "Match a symmetric part by its symmetry on/off (true|false)");
   d->add_option("--verify", o.verify, "Verification score and rejection on/off (true|false)");
   d->add_option("--min-score", o.min_score, "Smallest accepted verification score in [0, 1]");
   d->add_option("--viewpoint", o.viewpoint, "Sensor origin x y z in the scan frame, mm (default: the file's, else 0 0 0)")->expected(3);
@@ -149,10 +146,9 @@ binpose::DetectionParams detectParams(const DetectOptions& o, float diameter, co
   if (o.C_n) p.C_n = *o.C_n;
   if (o.sigma_dist) p.sigma_dist = *o.sigma_dist;
   if (o.k_normals) p.k_normals = *o.k_normals;
-  if (o.subsampling) p.subsampling = *o.subsampling == "random" ? binpose::Subsampling::Random : binpose::Subsampling::Voxel;
-  if (o.candidates) p.candidates_per_point = *o.candidates;
   if (o.refine) p.refine = *o.refine;
   if (o.verify) p.verify = *o.verify;
+  if (o.symmetry) p.use_symmetry = *o.symmetry;
   if (o.min_score) p.min_score = *o.min_score;
   if (o.max_instances) p.max_instances = *o.max_instances;
   if (o.seed) p.seed = *o.seed;

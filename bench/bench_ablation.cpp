@@ -7,6 +7,8 @@
 #include <binpose/io.hpp>
 #include <binpose/shapes.hpp>
 
+#include "stage_settings.hpp"
+
 #include "../tests/synthetic.hpp"
 
 #include <algorithm>
@@ -19,7 +21,7 @@ namespace {
 
 struct Variant {
   const char* name;
-  DetectionParams params;
+  StageSettings params;
 };
 
 double median(std::vector<double> v) {
@@ -48,8 +50,9 @@ int main(int argc, char** argv) {
   for (const Vec3& p : model.points) centroid += p;
   centroid /= float(model.points.size());
 
+  const auto stages = [&](const DetectionParams& user) { return stageSettings(scaledToModel(user, model.diameter), model.diameter); };
   std::vector<Variant> variants;
-  DetectionParams p = thesisPreset();
+  StageSettings p = stages(thesisPreset());
   variants.push_back({"thesis (random, no refine, no verify)", p});
   p.subsampling = Subsampling::Voxel;
   variants.push_back({"thesis + voxel sub-sampling", p});
@@ -57,15 +60,15 @@ int main(int argc, char** argv) {
   variants.push_back({"thesis + voxel + verify", p});
   p.refine = true;
   variants.push_back({"thesis + voxel + verify + ICP", p});
-  variants.push_back({"default (local votes, planes, symmetry, ...)", defaultPreset()});
-  p = defaultPreset();
+  variants.push_back({"default (local votes, planes, symmetry, ...)", stages(defaultPreset())});
+  p = stages(defaultPreset());
   p.retry_all_voters = false;
   variants.push_back({"default without the second pass", p});
 
   std::printf("model %s, %.1f mm; %d scenes x %d copies\n", argv[1], model.diameter, scenes, copies);
   std::printf("%-40s %7s %6s %9s %9s %9s\n", "variant", "recall", "false", "cent mm", "angle deg", "ms/scene");
   for (const Variant& v : variants) {
-    const Detector detector(db, scaledToModel(v.params, model.diameter));
+    const Detector detector(db, v.params);
     int correct = 0, wrong = 0;
     std::vector<double> cent, ang, ms;
     for (int s = 0; s < scenes; ++s) {

@@ -15,6 +15,8 @@
 #include <binpose/simulation.hpp>
 #include <binpose/voting.hpp>
 
+#include "stage_settings.hpp"
+
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -31,14 +33,15 @@ struct Fixture {
   OrientedModel model = prepareModel(mesh, ModelParams{});
   ModelDatabase db = ModelDatabase::build(model, defaultQuantization(model.diameter));
   /// As the detector runs them (plane_min_area resolved from the model).
-  DetectionParams params = Detector(db, scaledToModel(defaultPreset(), model.diameter)).params();
+  StageSettings params = Detector(db, scaledToModel(defaultPreset(), model.diameter)).settings();
   SimulatedScene bin = [this] {
     SimulationParams sp;
     sp.seed = 7;
     return simulateBin(mesh, sp);
   }();
   PointGrid scan_grid{bin.cloud.points};
-  PreparedScene scene = prepareScene(bin.cloud.points, scan_grid, params);
+  PreparedScene scene = prepareScene(bin.cloud.points, scan_grid, subsampleScene(bin.cloud.points, params.rho_sub, params.subsampling, params.seed),
+                                     params.k_normals, params.viewpoint);
   std::vector<std::vector<std::uint32_t>> groups = makeSubGroups(scene.points, params.eta, params.r, 8);
   /// The sub-group of median size.
   const std::vector<std::uint32_t>& medianGroup() const { return groups[groups.size() / 2]; }
@@ -155,7 +158,12 @@ void BM_Planes(benchmark::State& state) {  // the bin's floor and walls found in
   const Fixture& f = fixture();
   std::size_t flat = 0;
   for (auto _ : state) {
-    const auto flags = largePlanes(f.scene.points, f.scene.normals, f.params.rho_sub, planeParams(f.params));
+    PlaneParams planes;  // as the detector searches them (scan_preparation.cpp)
+    planes.min_area = f.params.plane_min_area;
+    planes.tolerance = f.params.plane_tolerance;
+    planes.link = 2.5f / std::sqrt(f.params.rho_sub);
+    planes.seed = f.params.seed;
+    const auto flags = largePlanes(f.scene.points, f.scene.normals, f.params.rho_sub, planes);
     flat = static_cast<std::size_t>(std::count(flags.begin(), flags.end(), 1));
   }
   state.counters["points"] = static_cast<double>(f.scene.points.size());
@@ -180,9 +188,9 @@ void BM_VoteSubGroup(benchmark::State& state) {
 BENCHMARK_TEMPLATE(BM_VoteSubGroup, Voter)->Unit(benchmark::kMillisecond);
 BENCHMARK_TEMPLATE(BM_VoteSubGroup, ParallelVoter)->Unit(benchmark::kMillisecond)->UseRealTime();
 
-void BM_LocalVotes(benchmark::State& state) {  // the fast preset's local votes, every sampled point voting once
+void BM_LocalVotes(benchmark::State& state) {  // the default local votes, every sampled point voting once
   const Fixture& f = fixture();
-  const DetectionParams p = scaledToModel(defaultPreset(), f.model.diameter);
+  const StageSettings& p = f.params;
   std::vector<std::uint32_t> all(f.scene.points.size());
   std::iota(all.begin(), all.end(), 0u);
   for (auto _ : state) {  // as the detector does it: partners thinned, candidates spaced
@@ -197,7 +205,7 @@ BENCHMARK(BM_LocalVotes)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 void BM_ConsistencyGraph(benchmark::State& state) {  // 4.5, eq. 13-16, on the default preset's candidates of the median sub-group
   const Fixture& f = fixture();
-  const DetectionParams p = scaledToModel(defaultPreset(), f.model.diameter);
+  const StageSettings& p = f.params;
   const auto partners = voxelSubsample(f.scene.points, p.partner_spacing);
   NeighbourhoodVoter voter(f.db, f.scene.points, f.scene.normals, p.vote_radius, p.candidates_per_point, partners,
                            p.candidate_spacing);

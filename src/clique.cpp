@@ -10,6 +10,7 @@
 #include <cstring>
 #include <deque>
 #include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 namespace binpose {
@@ -17,10 +18,19 @@ namespace {
 
 using Bits = std::vector<std::uint64_t>;
 
+/// One depth of the search: its candidate set P and the colouring's buffers, kept from one
+/// node to the next (no allocation per node once the depth has been reached).
+struct Level {
+  Bits P, uncoloured, available;
+  std::vector<int> order, colours;
+};
+
 class Search {
  public:
   /// `floor`: a clique of that many vertices is known already; only larger ones are searched.
-  Search(const Graph& g, std::uint64_t limit, std::size_t floor) : g_(g), limit_(limit), floor_(floor) {}
+  /// `levels`: the depths' buffers, kept by the caller from one search to the next.
+  Search(const Graph& g, std::uint64_t limit, std::size_t floor, std::deque<Level>& levels)
+      : g_(g), limit_(limit), floor_(floor), levels_(levels) {}
 
   CliqueResult run() {
     Bits& all = level(0).P;
@@ -37,24 +47,10 @@ class Search {
   }
 
  private:
-  /// One depth of the search: its candidate set P and the colouring's buffers, kept from one
-  /// node to the next (no allocation per node once the depth has been reached).
-  struct Level {
-    Bits P, uncoloured, available;
-    std::vector<int> order, colours;
-  };
-
-  /// The buffers of depth d (a deque: the levels above keep their places as it grows). Each
-  /// thread keeps its levels from one search to the next: a search has no parallel step in
-  /// which the thread could start another (ipd8-16 ran 2000 searches a run, each allocating
-  /// its levels anew).
+  /// The buffers of depth d (a deque: the levels above keep their places as it grows).
   Level& level(std::size_t d) {
     while (levels_.size() <= d) levels_.emplace_back();
     return levels_[d];
-  }
-  static std::deque<Level>& threadLevels() {
-    static thread_local std::deque<Level> levels;
-    return levels;
   }
 
   /// Greedy sequential colouring of L.P: vertices in colour order and their colour numbers; a
@@ -109,7 +105,7 @@ class Search {
   std::size_t floor_;
   bool stopped_ = false;
   std::vector<int> best_;
-  std::deque<Level>& levels_ = threadLevels();
+  std::deque<Level>& levels_;
 };
 
 /// A clique grown greedily from each of the few highest-degree vertices (adding, in degree
@@ -268,22 +264,6 @@ void relabelled(const Graph& g, const std::vector<int>& order, Graph& sorted, st
     std::copy_n(xt.begin() + static_cast<std::ptrdiff_t>(order[a]) * yw, yw, sorted.mutableRow(a));
 }
 
-/// maximumClique's buffers, kept by each thread from one call to the next: a call has no
-/// parallel step, so a thread never runs two at once (ipd8-16 made some 350 calls a run, each
-/// allocating about fifteen buffers, and the allocator showed in the cliques' time).
-struct Workspace {
-  std::vector<int> degree, start, by_degree, greedy, clique, queue, order;
-  std::vector<char> in_core;
-  Bits P;
-  std::vector<std::uint64_t> xt;
-  Graph sorted{0};
-};
-
-Workspace& workspace() {
-  static thread_local Workspace w;
-  return w;
-}
-
 }  // namespace
 
 void transposeBits64(std::array<std::uint64_t, 64>& a, bool simd) {
@@ -325,10 +305,32 @@ void Graph::mirrorUpper() {
   });
 }
 
+/// maximumClique's buffers: the caller keeps them from one call to the next (a matcher made
+/// hundreds of calls a scan, each allocating about fifteen buffers, and the allocator showed in
+/// the cliques' time).
+struct CliqueWorkspace::Buffers {
+  std::vector<int> degree, start, by_degree, greedy, clique, queue, order;
+  std::vector<char> in_core;
+  Bits P;
+  std::vector<std::uint64_t> xt;
+  Graph sorted{0};
+  std::deque<Level> levels;
+};
+
+CliqueWorkspace::CliqueWorkspace() : buffers_(std::make_unique<Buffers>()) {}
+CliqueWorkspace::~CliqueWorkspace() = default;
+CliqueWorkspace::CliqueWorkspace(CliqueWorkspace&&) noexcept = default;
+CliqueWorkspace& CliqueWorkspace::operator=(CliqueWorkspace&&) noexcept = default;
+
 CliqueResult maximumClique(const Graph& g, std::uint64_t work_limit) {
+  CliqueWorkspace workspace;
+  return maximumClique(g, work_limit, workspace);
+}
+
+CliqueResult maximumClique(const Graph& g, std::uint64_t work_limit, CliqueWorkspace& workspace) {
   if (g.size() == 0) return {};
   const int n = g.size();
-  Workspace& w = workspace();
+  CliqueWorkspace::Buffers& w = *workspace.buffers_;
   std::vector<int>& degree = w.degree;
   degree.resize(static_cast<std::size_t>(n));
   for (int v = 0; v < n; ++v) degree[v] = g.degree(v);
@@ -358,7 +360,7 @@ CliqueResult maximumClique(const Graph& g, std::uint64_t work_limit) {
   r.vertices = greedy;
   if (order.size() > greedy.size()) {
     relabelled(g, order, w.sorted, w.xt);
-    CliqueResult found = Search(w.sorted, work_limit, greedy.size()).run();
+    CliqueResult found = Search(w.sorted, work_limit, greedy.size(), w.levels).run();
     r.exact = found.exact;
     r.nodes = found.nodes;
     if (found.vertices.size() > greedy.size()) {
@@ -389,14 +391,13 @@ Graph consistencyGraph(std::span<const Correspondence> cps, const Points& scene,
     for (int k = 0; k < 3; ++k) c[k][i] = model[cps[i].model][k];
   const std::array<const float*, 3> coords{c[0].data(), c[1].data(), c[2].data()};
   const int runs = static_cast<int>(run_start.size()) - 1;
+  struct Bands {
+    std::vector<float> low2, high2;
+  };
+  tbb::enumerable_thread_specific<Bands> bands([&] { return Bands{std::vector<float>(cps.size()), std::vector<float>(cps.size())}; });
   tbb::parallel_for(tbb::blocked_range<int>(0, runs, 4), [&](const tbb::blocked_range<int>& range) {  // runs apart
-    // Each thread's bands, kept from one task to the next (every value read is written first;
-    // a task has no parallel step, so a thread runs one at a time).
-    static thread_local std::vector<float> low2, high2;
-    if (low2.size() < cps.size()) {
-      low2.resize(cps.size());
-      high2.resize(cps.size());
-    }
+    // The thread's bands, one per column (every value read is written first).
+    auto& [low2, high2] = bands.local();
     for (int r = range.begin(); r < range.end(); ++r) {
       const int first_row = run_start[r];
       const Vec3& s = scene[cps[first_row].scene];

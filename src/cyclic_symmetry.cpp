@@ -10,6 +10,7 @@
 #include <bit>
 #include <limits>
 #include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 namespace binpose {
@@ -146,8 +147,8 @@ void keepScreened(const float* __restrict c, int n, int begin, int end, const fl
   kept.count = m;
 }
 
-/// A row's buffers for n candidates, kept by each thread from graph to graph (every value read
-/// is written first).
+/// A row's buffers for n candidates, one set per thread of a graph's rows (every value read is
+/// written first).
 struct RowScratch {
   std::vector<float> dot, cross, z;
   std::vector<std::uint32_t> turns;
@@ -288,8 +289,9 @@ Graph cyclicConsistencyGraph(std::span<const Correspondence> cps, const Points& 
   // Row i's partners j > i into row i alone (rows apart on the cores), mirrored after (mirrorUpper):
   // screened, then the turns of the right distance found, both on SIMD lanes; the three angles
   // are tested only at those turns (1.8 a pair on average of IPD obj 8's 17, where any).
+  tbb::enumerable_thread_specific<RowScratch> scratches;  // one set per thread of this call
   tbb::parallel_for(tbb::blocked_range<int>(0, n, 16), [&](const tbb::blocked_range<int>& rows) {
-    static thread_local RowScratch scratch;
+    RowScratch& scratch = scratches.local();
     scratch.fit(cps.size());
     auto& [dot, cross, z, turns, t_lo, t_hi, nn_scene, ni_d, nj_d, slack, kept] = scratch;
     for (int i = rows.begin(); i < rows.end(); ++i) {
@@ -330,14 +332,16 @@ Graph cyclicConsistencyGraph(std::span<const Correspondence> cps, const Points& 
 }
 
 PoseFit solveCyclicPose(const CyclicSymmetry& sym, const Points& model, const Points& scene) {
+  CyclicPoseBuffers buffers;
+  return solveCyclicPose(sym, model, scene, buffers);
+}
+
+PoseFit solveCyclicPose(const CyclicSymmetry& sym, const Points& model, const Points& scene, CyclicPoseBuffers& b) {
   const int m = static_cast<int>(model.size());
   if (m < 3 || scene.size() != model.size()) return {};
   const int n = sym.order;
-  // Every image of every clique point, in one block (image k of point v at v * n + k). The
-  // buffers are each thread's, kept from one call to the next (there is no parallel step here,
-  // so a thread runs one call at a time): ipd8-16's clique fits allocated them 2600 times a run.
-  static thread_local Points image_block, chosen, anchor_model(3), anchor_scene(3);
-  static thread_local std::vector<float> misfit;
+  // Every image of every clique point, in one block (image k of point v at v * n + k).
+  auto& [image_block, chosen, anchor_model, anchor_scene, misfit, pose_buffer] = b;
   image_block.resize(static_cast<std::size_t>(m) * static_cast<std::size_t>(n));
   misfit.resize(static_cast<std::size_t>(n));
   chosen.resize(static_cast<std::size_t>(m));
@@ -380,7 +384,7 @@ PoseFit solveCyclicPose(const CyclicSymmetry& sym, const Points& model, const Po
     for (const int k2 : {k2_best, smallest(misfit, k2_best)}) {
       anchor_model = {images(a0)[0], images(a1)[k1], images(a2)[k2]};
       anchor_scene = {scene[a0], scene[a1], scene[a2]};
-      const PoseFit start = solvePose(anchor_model, anchor_scene);
+      const PoseFit start = solvePose(anchor_model, anchor_scene, pose_buffer);
       if (!start.ok) continue;
       // Each point at its image nearest the scene under the anchors' pose.
       for (int v = 0; v < m; ++v) {
@@ -393,7 +397,7 @@ PoseFit solveCyclicPose(const CyclicSymmetry& sym, const Points& model, const Po
           }
         chosen[v] = images(v)[kv];
       }
-      const PoseFit fit = solvePose(chosen, scene);
+      const PoseFit fit = solvePose(chosen, scene, pose_buffer);
       if (fit.ok && fit.rms < best.rms) best = fit;
     }
   }

@@ -28,7 +28,7 @@ constexpr float kShapeCellShare = 0.1f;
 /// points, and has no more now.
 std::vector<std::uint32_t> groupsToRetry(const std::vector<std::vector<std::uint32_t>>& groups,
                                          const std::vector<int>& largest_clique, const std::vector<char>& removed,
-                                         const DetectionParams& p) {
+                                         const StageSettings& p) {
   std::vector<std::uint32_t> order;
   const auto live = [&](std::uint32_t g) {
     return std::count_if(groups[g].begin(), groups[g].end(), [&](std::uint32_t i) { return removed[i] == 0; });
@@ -61,29 +61,39 @@ void countStages(const PreparedScan& prepared, std::size_t groups, const MatchSt
   result.refound = state.refound;
 }
 
+/// The settings validated, a plane_min_area of 0 resolved to the model's largest flat face.
+std::unique_ptr<const StageSettings> checkedSettings(const StageSettings& settings, const OrientedModel& model) {
+  validateStages(settings);
+  auto s = std::make_unique<StageSettings>(settings);
+  if (s->plane_min_area == 0) s->plane_min_area = boundingFaceArea(model.points);
+  return s;
+}
+
 }  // namespace
 
 Detector::Detector(const ModelDatabase& db, const DetectionParams& params)
+    : Detector(db, stageSettings(params, db.model().diameter)) {}
+
+Detector::Detector(const ModelDatabase& db, const StageSettings& settings)
     : db_(db),
-      params_(params),
+      settings_(checkedSettings(settings, db.model())),
       icp_model_([&] {
         OrientedPoints share =
-            evenShare(db.model().points, db.model().normals, static_cast<std::size_t>(std::max(0, params.icp_model_points)));
+            evenShare(db.model().points, db.model().normals, static_cast<std::size_t>(settings_->icp_model_points));
         return PreparedModel(std::move(share.points), std::move(share.normals));
       }()),
       scored_model_(db.model().points, db.model().normals) {
-  validate(params_);
   const OrientedModel& model = db.model();
-  if (params_.plane_min_area == 0) params_.plane_min_area = boundingFaceArea(model.points);
-  symmetry_ = std::make_unique<const PartSymmetry>(db, params_);
+  symmetry_ = std::make_unique<const PartSymmetry>(db, *settings_);
   shape_ = std::make_unique<const ModelShape>(model.points, model.diameter,
-                                              std::max(params_.sigma_dist, kShapeCellShare * model.diameter), icp_model_.points(),
+                                              std::max(settings_->sigma_dist, kShapeCellShare * model.diameter), icp_model_.points(),
                                               orbits() != nullptr ? &orbits()->axis : nullptr, cyclicSymmetry());
 }
 
 Detector::~Detector() = default;
 const Orbits* Detector::orbits() const { return symmetry_->orbits(); }
 const CyclicSymmetry* Detector::cyclicSymmetry() const { return symmetry_->cyclic(); }
+const DetectionParams& Detector::params() const { return *settings_; }
 Detector::Detector(Detector&&) noexcept = default;
 
 DetectionResult Detector::detect(const PointCloud& scan) const {
@@ -92,8 +102,8 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   result.scene_points = scan.size();
   if (scan.empty()) return result;
   PreparedScan prepared;  // 5.2.1-5.2.2: sub-sampled, oriented, the bin's planes apart; the noise measured
-  prepareScan(scan, params_, prepared);
-  const DetectionParams& p = prepared.params;  // adapted to the scan's noise
+  prepareScan(scan, *settings_, prepared);
+  const StageSettings& p = prepared.params;  // adapted to the scan's noise
   const PreparedScene& scene = prepared.scene;
   std::vector<std::vector<std::uint32_t>> groups;  // 5.2.3-5.2.4, beside the local voters' set-up
   LocalVotes local;

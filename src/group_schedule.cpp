@@ -56,7 +56,7 @@ bool MatchState::refoundAt(const Pose& pose, const ModelShape& shape, float refo
          std::any_of(found.begin(), found.end(), [&](const Pose& f) { return shape.samePose(pose, f, refound_share); });
 }
 
-GroupSchedule::GroupSchedule(const ModelDatabase& db, const DetectionParams& p, const ModelShape& shape, const Matcher& matcher,
+GroupSchedule::GroupSchedule(const ModelDatabase& db, const StageSettings& p, const ModelShape& shape, const Matcher& matcher,
                              const std::vector<std::vector<std::uint32_t>>& groups, NeighbourhoodVoter* local,
                              const std::vector<char>& may_vote, MatchState& state)
     : p_(p),

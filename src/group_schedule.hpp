@@ -37,7 +37,7 @@ struct ScheduleTimes {
 
 class GroupSchedule {
  public:
-  GroupSchedule(const ModelDatabase& db, const DetectionParams& p, const ModelShape& shape, const Matcher& matcher,
+  GroupSchedule(const ModelDatabase& db, const StageSettings& p, const ModelShape& shape, const Matcher& matcher,
                 const std::vector<std::vector<std::uint32_t>>& groups, NeighbourhoodVoter* local,
                 const std::vector<char>& may_vote, MatchState& state);
 
@@ -61,7 +61,7 @@ class GroupSchedule {
   /// One outcome taken: the counts, hypotheses and removals of running the sub-groups in turn.
   void take(GroupOutcome& o);
 
-  const DetectionParams& p_;
+  const StageSettings& p_;
   const ModelShape& shape_;
   const Matcher& matcher_;
   const std::vector<std::vector<std::uint32_t>>& groups_;

@@ -5,7 +5,7 @@
 
 namespace binpose {
 
-LocalVotes makeLocalVotes(const ModelDatabase& db, const PreparedScene& scene, const DetectionParams& p,
+LocalVotes makeLocalVotes(const ModelDatabase& db, const PreparedScene& scene, const StageSettings& p,
                           const PartSymmetry& symmetry) {
   LocalVotes out;
   if (!p.local_votes) return out;

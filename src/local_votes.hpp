@@ -2,7 +2,7 @@
 // Local votes (binpose's default): each scene point votes once, with its neighbours within
 // vote_radius, and every sub-group holding it reuses its candidates (voting.hpp).
 #include <binpose/model_database.hpp>
-#include <binpose/params.hpp>
+#include "stage_settings.hpp"
 #include <binpose/scene.hpp>
 #include <binpose/voting.hpp>
 
@@ -21,7 +21,7 @@ struct LocalVotes {
 
 /// The voter over the scene (partners one per partner_spacing cube) and the reference points
 /// (one per voter_spacing cube; all without it). Empty when local_votes is off.
-LocalVotes makeLocalVotes(const ModelDatabase& db, const PreparedScene& scene, const DetectionParams& p,
+LocalVotes makeLocalVotes(const ModelDatabase& db, const PreparedScene& scene, const StageSettings& p,
                           const PartSymmetry& symmetry);
 
 }  // namespace binpose

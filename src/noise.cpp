@@ -62,8 +62,8 @@ NoiseEstimate estimateNoise(const Points& cloud, std::span<const std::uint32_t> 
   return out;
 }
 
-DetectionParams adaptedToNoise(const DetectionParams& p, const NoiseEstimate& noise) {
-  DetectionParams a = p;
+StageSettings adaptedToNoise(const StageSettings& p, const NoiseEstimate& noise) {
+  StageSettings a = p;
   if (noise.samples == 0 || !(noise.reach > 0)) return a;
   const float tilt = noise.sigma / noise.reach;
   if (tilt > kSoundTilt) {

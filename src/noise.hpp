@@ -1,6 +1,6 @@
 #pragma once
 // The scan's noise, measured on the scan itself: the residuals of small plane fits.
-#include <binpose/params.hpp>
+#include "stage_settings.hpp"
 #include <binpose/types.hpp>
 
 #include <cstdint>
@@ -28,6 +28,6 @@ NoiseEstimate estimateNoise(const Points& cloud, std::span<const std::uint32_t> 
 /// the normals' neighbours k (so that a fit's tilt from noise stays small), e_gmax, the plane
 /// tolerance and the verification tolerance (each a multiple of sigma). The same parameters for
 /// a scan as clean as the simulator's ideal sensor.
-DetectionParams adaptedToNoise(const DetectionParams& p, const NoiseEstimate& noise);
+StageSettings adaptedToNoise(const StageSettings& p, const NoiseEstimate& noise);
 
 }  // namespace binpose

@@ -5,7 +5,7 @@
 
 namespace binpose {
 
-PartSymmetry::PartSymmetry(const ModelDatabase& db, const DetectionParams& p) {
+PartSymmetry::PartSymmetry(const ModelDatabase& db, const StageSettings& p) {
   const OrientedModel& model = db.model();
   if (p.use_revolution)
     if (const auto axis = findRevolutionAxis(model)) {
@@ -24,12 +24,12 @@ const Orbits* PartSymmetry::votingOrbits() const {
   return orbits_ ? &*orbits_ : classes_ ? &*classes_ : nullptr;
 }
 
-int PartSymmetry::candidatesPerPoint(const DetectionParams& p) const {
+int PartSymmetry::candidatesPerPoint(const StageSettings& p) const {
   return kind_ == Kind::None ? p.candidates_per_point : std::min(p.candidates_per_point, p.revolution_candidates);
 }
 
 Graph PartSymmetry::consistencyGraph(std::span<const Correspondence> cps, const Points& scene, const Points& scene_normals,
-                                     const OrientedModel& model, const DetectionParams& p) const {
+                                     const OrientedModel& model, const StageSettings& p) const {
   switch (kind_) {
     case Kind::Revolution:
       return revolutionConsistencyGraph(cps, scene, scene_normals, *orbits_, p.e_gmax, p.revolution_angle_tolerance);
@@ -56,7 +56,7 @@ std::vector<PoseFit> PartSymmetry::solve(std::span<const Correspondence> clique,
   }
   b.model.clear();
   for (const Correspondence& c : clique) b.model.push_back(model[c.model]);
-  PoseFit fit = kind_ == Kind::Cyclic ? solveCyclicPose(*cyclic_, b.model, b.scene) : solvePose(b.model, b.scene);
+  PoseFit fit = kind_ == Kind::Cyclic ? solveCyclicPose(*cyclic_, b.model, b.scene, b.cyclic) : solvePose(b.model, b.scene, b.pose);
   if (!fit.ok) return {};
   return {fit};
 }

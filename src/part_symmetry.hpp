@@ -5,10 +5,11 @@
 #include <binpose/clique.hpp>
 #include <binpose/cyclic_symmetry.hpp>
 #include <binpose/model_database.hpp>
-#include <binpose/params.hpp>
 #include <binpose/pose.hpp>
 #include <binpose/symmetry.hpp>
 #include <binpose/voting.hpp>
+
+#include "stage_settings.hpp"
 
 #include <optional>
 #include <span>
@@ -20,6 +21,9 @@ namespace binpose {
 struct CliqueBuffers {
   Points model, scene, scene_normals;
   std::vector<std::uint32_t> model_ids;
+  CliqueWorkspace clique;    ///< maximumClique's
+  CyclicPoseBuffers cyclic;  ///< solveCyclicPose's
+  std::vector<double> pose;  ///< solvePose's
 };
 
 class PartSymmetry {
@@ -28,7 +32,7 @@ class PartSymmetry {
 
   /// The model's symmetry as the parameters allow it (use_revolution, use_cyclic_symmetry); a
   /// body of revolution is looked for first.
-  PartSymmetry(const ModelDatabase& db, const DetectionParams& p);
+  PartSymmetry(const ModelDatabase& db, const StageSettings& p);
 
   [[nodiscard]] Kind kind() const { return kind_; }
   /// What the votes go to: orbits or classes of images (null: model points).
@@ -38,10 +42,10 @@ class PartSymmetry {
   /// The n-fold symmetry (null for another kind).
   [[nodiscard]] const CyclicSymmetry* cyclic() const { return cyclic_ ? &*cyclic_ : nullptr; }
   /// Candidates kept per scene point: a symmetric part's votes do not spread over its images.
-  [[nodiscard]] int candidatesPerPoint(const DetectionParams& p) const;
+  [[nodiscard]] int candidatesPerPoint(const StageSettings& p) const;
   /// The consistency graph of 4.5 (eq. 13-16), or its symmetric form.
   [[nodiscard]] Graph consistencyGraph(std::span<const Correspondence> cps, const Points& scene, const Points& scene_normals,
-                                       const OrientedModel& model, const DetectionParams& p) const;
+                                       const OrientedModel& model, const StageSettings& p) const;
   /// The closed-form poses of a clique's pairs (4.6), best first: one, or for a body of
   /// revolution both axis signs where the normals leave it open. None when there is no pose.
   [[nodiscard]] std::vector<PoseFit> solve(std::span<const Correspondence> clique, const Points& scene,

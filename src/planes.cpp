@@ -169,19 +169,6 @@ std::size_t countOnPlane(const detail::OrientedLanes& probe, const Plane& plane,
   return count;
 }
 
-}  // namespace
-
-PlaneParams planeParams(const DetectionParams& params) {
-  PlaneParams planes;
-  planes.min_area = params.plane_min_area;
-  planes.tolerance = params.plane_tolerance;
-  planes.link = 2.5f / std::sqrt(params.rho_sub);  // neighbours on a plane are one sample spacing apart
-  planes.seed = params.seed;
-  return planes;
-}
-
-namespace {
-
 void checkPlaneInputs(const Points& points, const Points& normals, float density, const PlaneParams& params,
                       const LateNormals* late) {
   if (points.size() != normals.size()) throw Error("largePlanes: one normal per point needed");

@@ -9,14 +9,17 @@
 namespace binpose {
 
 PoseFit solvePose(const Points& model, const Points& scene) {
+  std::vector<double> buffer;
+  return solvePose(model, scene, buffer);
+}
+
+PoseFit solvePose(const Points& model, const Points& scene, std::vector<double>& buffer) {
   PoseFit fit;
   const auto n = static_cast<Eigen::Index>(model.size());
   if (n < 3 || model.size() != scene.size()) return fit;
-  // The four 3 x n matrices over each thread's buffer, kept from one call to the next (a clique
-  // fit of a part of n-fold symmetry solves eight poses of 3 to 20 points, each of which
-  // allocated four matrices; an Eigen matrix reallocates whenever its size changes, a vector
-  // only when it grows). No parallel step inside.
-  static thread_local std::vector<double> buffer;
+  // The four 3 x n matrices over the caller's buffer (a clique fit of a part of n-fold symmetry
+  // solves eight poses of 3 to 20 points, each of which allocated four matrices; an Eigen
+  // matrix reallocates whenever its size changes, a vector only when it grows).
   buffer.resize(static_cast<std::size_t>(12 * n));
   using Columns = Eigen::Map<Eigen::Matrix3Xd>;
   Columns M(buffer.data(), 3, n), S(buffer.data() + 3 * n, 3, n), Mc(buffer.data() + 6 * n, 3, n), Sc(buffer.data() + 9 * n, 3, n);

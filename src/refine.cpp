@@ -11,14 +11,12 @@
 #include <optional>
 #include <fmt/format.h>
 #include <tbb/parallel_for.h>
-#if defined(__SSE2__)
-#include <immintrin.h>
-#endif
+#include "refine_kernels.hpp"
 
 namespace binpose {
 namespace {
 
-[[maybe_unused]] bool facesSensor(const Vec3& p, const Vec3& n, const Vec3& viewpoint) { return n.dot(viewpoint - p) > 0.0f; }
+bool facesSensor(const Vec3& p, const Vec3& n, const Vec3& viewpoint) { return n.dot(viewpoint - p) > 0.0f; }
 
 /// Points per task of the parallel loops: fixed, so the partial sums and their order (and so
 /// every bit of the result) are the same whatever the thread count.
@@ -82,22 +80,8 @@ detail::OrientedLanes lanesOf(const Points& points, const Points& normals, std::
 /// so each lane is bit for bit what the scalar code gives.
 unsigned poseFour(const detail::OrientedLanes& lanes, std::size_t s, const Pose& pose, const Vec3& viewpoint, float* p, float* n) {
 #if defined(__SSE2__)
-  const Eigen::Matrix3f& R = pose.linear();
-  const Vec3 t = pose.translation();
-  const __m128 x = _mm_loadu_ps(lanes.c[0].data() + s), y = _mm_loadu_ps(lanes.c[1].data() + s), z = _mm_loadu_ps(lanes.c[2].data() + s);
-  const __m128 a = _mm_loadu_ps(lanes.c[3].data() + s), b = _mm_loadu_ps(lanes.c[4].data() + s), c = _mm_loadu_ps(lanes.c[5].data() + s);
-  __m128 w[3], m[3];
-  for (int k = 0; k < 3; ++k) {
-    const __m128 r0 = _mm_set1_ps(R(k, 0)), r1 = _mm_set1_ps(R(k, 1)), r2 = _mm_set1_ps(R(k, 2));
-    const __m128 pk = _mm_add_ps(_mm_add_ps(_mm_add_ps(_mm_mul_ps(r0, x), _mm_mul_ps(r1, y)), _mm_mul_ps(r2, z)), _mm_set1_ps(t[k]));
-    m[k] = _mm_add_ps(_mm_mul_ps(r0, a), _mm_add_ps(_mm_mul_ps(r1, b), _mm_mul_ps(r2, c)));
-    w[k] = _mm_sub_ps(_mm_set1_ps(viewpoint[k]), pk);
-    _mm_storeu_ps(p + 4 * k, pk);
-    _mm_storeu_ps(n + 4 * k, m[k]);
-  }
-  const __m128 dot = _mm_add_ps(_mm_mul_ps(m[0], w[0]), _mm_add_ps(_mm_mul_ps(m[1], w[1]), _mm_mul_ps(m[2], w[2])));
-  return static_cast<unsigned>(_mm_movemask_ps(_mm_cmpgt_ps(dot, _mm_setzero_ps())));
-#else
+  return kernels::poseFour(lanes, s, pose, viewpoint, p, n);
+#endif
   unsigned facing = 0;
   for (int l = 0; l < 4; ++l) {
     const Vec3 q = pose * Vec3(lanes.c[0][s + l], lanes.c[1][s + l], lanes.c[2][s + l]);
@@ -109,7 +93,6 @@ unsigned poseFour(const detail::OrientedLanes& lanes, std::size_t s, const Pose&
     facing |= unsigned(facesSensor(q, v, viewpoint)) << l;
   }
   return facing;
-#endif
 }
 
 constexpr std::uint32_t kUnpaired = ~std::uint32_t{0};
@@ -158,28 +141,6 @@ Eigen::Matrix<double, 6, 1> constrainedStep(const Eigen::Matrix<double, 6, 6>& A
   return scale.asDiagonal() * y;
 }
 
-#if defined(__SSE2__)
-/// The image frame's rotation on SIMD lanes: four points' image-frame coordinates and ranges,
-/// summed as Eigen sums a 3 x 3 matrix times a vector, a + (b + c), and a norm,
-/// sqrt(x^2 + (y^2 + z^2)) (both checked bit for bit against Eigen on 5 million random cases;
-/// the other orders differed in 4-30% of them).
-struct ViewLanes {
-  __m128 t[3][3];
-  explicit ViewLanes(const Eigen::Matrix3f& to_view) {
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c) t[r][c] = _mm_set1_ps(to_view(r, c));
-  }
-  /// q = to_view d, for d = p - viewpoint.
-  void rotate(const __m128 (&d)[3], __m128 (&q)[3]) const {
-    for (int r = 0; r < 3; ++r)
-      q[r] = _mm_add_ps(_mm_mul_ps(t[r][0], d[0]), _mm_add_ps(_mm_mul_ps(t[r][1], d[1]), _mm_mul_ps(t[r][2], d[2])));
-  }
-  static __m128 norm(const __m128 (&q)[3]) {
-    return _mm_sqrt_ps(_mm_add_ps(_mm_mul_ps(q[0], q[0]), _mm_add_ps(_mm_mul_ps(q[1], q[1]), _mm_mul_ps(q[2], q[2]))));
-  }
-};
-#endif
-
 /// The scan points in front of the sensor (z > 0 in the image frame), each as its direction in
 /// the image (u, v: x / z and y / z) and its range, in the scan's order.
 struct Projected {
@@ -194,24 +155,7 @@ void projectAll(const Points& scan, const Vec3& viewpoint, const Eigen::Matrix3f
   out.range.reserve(scan.size());
   std::size_t i = 0;
 #if defined(__SSE2__)
-  const ViewLanes view(to_view);
-  for (; i + 4 <= scan.size(); i += 4) {
-    const Vec3 *a = &scan[i], *b = &scan[i + 1], *c = &scan[i + 2], *e = &scan[i + 3];
-    __m128 d[3], q[3];
-    for (int k = 0; k < 3; ++k) d[k] = _mm_sub_ps(_mm_setr_ps((*a)[k], (*b)[k], (*c)[k], (*e)[k]), _mm_set1_ps(viewpoint[k]));
-    view.rotate(d, q);
-    const __m128 front = _mm_cmpnle_ps(q[2], _mm_setzero_ps());  // !(z <= 0), as the scalar test
-    alignas(16) float u[4], v[4], range[4];
-    _mm_store_ps(u, _mm_div_ps(q[0], q[2]));
-    _mm_store_ps(v, _mm_div_ps(q[1], q[2]));
-    _mm_store_ps(range, ViewLanes::norm(q));
-    for (unsigned lanes = unsigned(_mm_movemask_ps(front)); lanes; lanes &= lanes - 1) {
-      const int l = std::countr_zero(lanes);
-      out.u.push_back(u[l]);
-      out.v.push_back(v[l]);
-      out.range.push_back(range[l]);
-    }
-  }
+  i = kernels::projectBlocks(scan, viewpoint, to_view, out);  // whole blocks of four, the same sums as below
 #endif
   for (; i < scan.size(); ++i) {
     const Vec3 q = to_view * (scan[i] - viewpoint);
@@ -467,23 +411,7 @@ SceneEvidence::SceneEvidence(const Points& scan, const PointGrid& grid, const Ve
   nearest_.assign(static_cast<std::size_t>(width_ * height_), INFINITY);
   std::size_t i = 0;
 #if defined(__SSE4_1__)
-  // cellAt on four points at a time: the same subtractions, divisions and floors.
-  const __m128 u0 = _mm_set1_ps(u0_), v0 = _mm_set1_ps(v0_), bin = _mm_set1_ps(bin_), zero = _mm_setzero_ps();
-  const __m128 width = _mm_set1_ps(float(width_)), height = _mm_set1_ps(float(height_));
-  for (; i + 4 <= seen.u.size(); i += 4) {
-    const __m128 x = _mm_floor_ps(_mm_div_ps(_mm_sub_ps(_mm_loadu_ps(&seen.u[i]), u0), bin));
-    const __m128 y = _mm_floor_ps(_mm_div_ps(_mm_sub_ps(_mm_loadu_ps(&seen.v[i]), v0), bin));
-    const __m128 inside = _mm_and_ps(_mm_and_ps(_mm_cmpge_ps(x, zero), _mm_cmplt_ps(x, width)),
-                                     _mm_and_ps(_mm_cmpge_ps(y, zero), _mm_cmplt_ps(y, height)));
-    alignas(16) std::int32_t cx[4], cy[4];
-    _mm_store_si128(reinterpret_cast<__m128i*>(cx), _mm_cvttps_epi32(x));
-    _mm_store_si128(reinterpret_cast<__m128i*>(cy), _mm_cvttps_epi32(y));
-    for (unsigned lanes = unsigned(_mm_movemask_ps(inside)); lanes; lanes &= lanes - 1) {
-      const int l = std::countr_zero(lanes);
-      float& cell = nearest_[std::size_t(long(cy[l]) * width_ + cx[l])];
-      cell = std::min(cell, seen.range[i + std::size_t(l)]);
-    }
-  }
+  i = kernels::nearestBlocks(seen.u, seen.v, seen.range, u0_, v0_, bin_, width_, height_, nearest_);  // cellAt's sums
 #endif
   for (; i < seen.u.size(); ++i)
     if (const long c = cellAt(seen.u[i], seen.v[i]); c >= 0) nearest_[c] = std::min(nearest_[c], seen.range[i]);
@@ -516,43 +444,13 @@ std::vector<Facing> facingPoints(const Pose& pose, const PreparedModel& model, c
                                  const Vec3& viewpoint, float cos_grazing_angle) {
   std::vector<Facing> facing;
   facing.reserve(model.points().size() / 2 + 64);  // about half face the sensor: one allocation, not one per doubling
+  std::size_t i = 0;
 #if defined(__SSE2__)
-  // Four points at a time (poseFour, ViewLanes), each lane summed as the scalar code below sums
-  // (the dot as a + (b + c)).
-  const detail::OrientedLanes& lanes = model.lanes();
-  const ViewLanes view(to_view);
-  const __m128 cos_grazing = _mm_set1_ps(cos_grazing_angle);
-  for (std::size_t s = 0; s < lanes.size; s += 4) {
-    alignas(16) float pf[12], nf[12];
-    unsigned keep = poseFour(lanes, s, pose, viewpoint, pf, nf);
-    if (s + 4 > lanes.size) keep &= (1u << (lanes.size - s)) - 1u;  // the padding
-    if (keep == 0) continue;
-    __m128 w[3], d[3], n[3];
-    for (int k = 0; k < 3; ++k) {
-      const __m128 p = _mm_load_ps(pf + 4 * k), v = _mm_set1_ps(viewpoint[k]);
-      w[k] = _mm_sub_ps(v, p);
-      d[k] = _mm_sub_ps(p, v);
-      n[k] = _mm_load_ps(nf + 4 * k);
-    }
-    __m128 q[3];
-    view.rotate(d, q);
-    keep &= static_cast<unsigned>(_mm_movemask_ps(_mm_cmpnle_ps(q[2], _mm_setzero_ps())));  // !(q.z <= 0)
-    if (keep == 0) continue;
-    const __m128 range = ViewLanes::norm(q);
-    const __m128 dot = _mm_add_ps(_mm_mul_ps(n[0], w[0]), _mm_add_ps(_mm_mul_ps(n[1], w[1]), _mm_mul_ps(n[2], w[2])));
-    const unsigned grazing = static_cast<unsigned>(_mm_movemask_ps(_mm_cmplt_ps(dot, _mm_mul_ps(cos_grazing, range))));
-    alignas(16) float ranges[4], u[4], v[4];
-    _mm_store_ps(ranges, range);
-    _mm_store_ps(u, _mm_div_ps(q[0], q[2]));
-    _mm_store_ps(v, _mm_div_ps(q[1], q[2]));
-    for (; keep; keep &= keep - 1) {
-      const int l = std::countr_zero(keep);
-      facing.push_back({Vec3(pf[l], pf[4 + l], pf[8 + l]), ranges[l], u[l], v[l], (grazing >> l & 1u) != 0});
-    }
-  }
-#else
+  i = kernels::facingBlocks(model.lanes(), pose, viewpoint, to_view, cos_grazing_angle,  // the same sums as below
+                            [&](const Vec3& p, float range, float u, float v, bool grazing) { facing.push_back({p, range, u, v, grazing}); });
+#endif
   const Points &model_points = model.points(), &model_normals = model.normals();
-  for (std::size_t i = 0; i < model_points.size(); ++i) {
+  for (; i < model_points.size(); ++i) {
     const Vec3 p = pose * model_points[i];
     const Vec3 n = pose.linear() * model_normals[i];
     if (!facesSensor(p, n, viewpoint)) continue;
@@ -561,7 +459,6 @@ std::vector<Facing> facingPoints(const Pose& pose, const PreparedModel& model, c
     const float range = q.norm();  // the normal is of unit length: its dot is the incidence's cosine times range
     facing.push_back({p, range, q.x() / q.z(), q.y() / q.z(), n.dot(viewpoint - p) < cos_grazing_angle * range});
   }
-#endif
   return facing;
 }
 

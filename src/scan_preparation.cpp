@@ -19,13 +19,26 @@ namespace {
 constexpr std::size_t kFitsPerTask = 16;
 /// The most neighbours the noise estimate asks for at once.
 constexpr std::size_t kMaxNoiseQuery = 32;
+/// Plane patches are linked over this many sample spacings (1 / sqrt(rho_sub)): neighbours on a
+/// plane are one spacing apart.
+constexpr float kPlaneLinkSpacings = 2.5f;
+
+/// The plane search for these settings: their plane_min_area and plane_tolerance, their seed.
+PlaneParams planeParams(const StageSettings& p) {
+  PlaneParams planes;
+  planes.min_area = p.plane_min_area;
+  planes.tolerance = p.plane_tolerance;
+  planes.link = kPlaneLinkSpacings / std::sqrt(p.rho_sub);
+  planes.seed = p.seed;
+  return planes;
+}
 
 /// The scene without the points of the bin's floor and walls. Normals left pending (NaN, their
 /// fits in `fits` by place among the chosen points `chosen`, of which the scene's are a part)
 /// are computed only where the plane search or the points kept need them: the scene of every
 /// normal computed. Empty when a pending fit turns out degenerate after all (the scene should
 /// not have held its point: start again with every normal computed).
-std::optional<PreparedScene> withoutPlanes(PreparedScene scene, const DetectionParams& p, std::vector<Plane>& planes,
+std::optional<PreparedScene> withoutPlanes(PreparedScene scene, const StageSettings& p, std::vector<Plane>& planes,
                                            std::span<const std::uint32_t> chosen, std::span<const PendingFit> fits) {
   std::vector<char> pending(scene.points.size(), 0);
   std::vector<std::uint32_t> place(scene.points.size());  // each point's among the chosen
@@ -75,7 +88,7 @@ std::optional<PreparedScene> withoutPlanes(PreparedScene scene, const DetectionP
 /// rest are found through the grid. A depth image's cells are sized from its pixel neighbours'
 /// spacing; any size gives the same answers. Fits that need Eigen's iterative solver go to
 /// `late` (when given) for the plane search to ask for: most lie on the floor and walls.
-Points orientedNormals(const PointCloud& scan, const DetectionParams& p, PreparedScan& out, std::vector<std::uint32_t>& chosen,
+Points orientedNormals(const PointCloud& scan, const StageSettings& p, PreparedScan& out, std::vector<std::uint32_t>& chosen,
                        std::vector<PendingFit>* late) {
   std::vector<std::uint32_t> deferred;
   Points normals;
@@ -95,7 +108,7 @@ Points orientedNormals(const PointCloud& scan, const DetectionParams& p, Prepare
   tbb::parallel_invoke(
       [&] { grid_ready.store(&out.grid.emplace(scan.points, 2.0f * pixelSpacing(scan)), std::memory_order_release); },
       [&] {
-        chosen = subsampleScene(scan.points, p);
+        chosen = subsampleScene(scan.points, p.rho_sub, p.subsampling, p.seed);
         out.pixels.emplace(scan);
         if (!out.pixels->usable()) return;
         measure([&](std::uint32_t i, std::size_t k, std::uint32_t* idx) {
@@ -116,7 +129,7 @@ Points orientedNormals(const PointCloud& scan, const DetectionParams& p, Prepare
 }
 
 /// The bin's planes out of out.scene; a degenerate pending fit means every normal computed, and again.
-void removePlanes(const PointCloud& scan, const DetectionParams& p, std::span<const std::uint32_t> chosen, Points& normals,
+void removePlanes(const PointCloud& scan, const StageSettings& p, std::span<const std::uint32_t> chosen, Points& normals,
                   std::span<const PendingFit> fits, PreparedScan& out, std::vector<Plane>& planes) {
   if (auto lazy = withoutPlanes(std::move(out.scene), p, planes, chosen, fits)) {
     out.scene = std::move(*lazy);
@@ -133,11 +146,11 @@ void removePlanes(const PointCloud& scan, const DetectionParams& p, std::span<co
 
 }  // namespace
 
-void prepareScan(const PointCloud& scan, const DetectionParams& user, PreparedScan& out) {
+void prepareScan(const PointCloud& scan, const StageSettings& user, PreparedScan& out) {
   std::vector<std::uint32_t> chosen;
   std::vector<PendingFit> fits;
   Points normals = orientedNormals(scan, user, out, chosen, user.remove_planes ? &fits : nullptr);
-  const DetectionParams& p = out.params;  // adapted to the noise from here on
+  const StageSettings& p = out.params;  // adapted to the noise from here on
   out.scene = orientedScene(scan.points, chosen, normals);
   out.sampled_points = out.scene.points.size();
   // The bin's planes and the score's view of the scan side by side.

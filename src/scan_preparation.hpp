@@ -2,7 +2,7 @@
 // The first stage of detection (thesis 5.2.1-5.2.2, then the bin's planes): the scan made ready
 // for the votes (sub-sampled oriented points, the floor and walls left out) and for
 // verification (the full scan's grid, pixel index and range image).
-#include <binpose/params.hpp>
+#include "stage_settings.hpp"
 #include <binpose/pixel_neighbours.hpp>
 #include <binpose/point_grid.hpp>
 #include <binpose/refine.hpp>
@@ -27,12 +27,12 @@ struct PreparedScan {
   std::size_t sampled_points = 0;         ///< oriented points after sub-sampling
   std::size_t plane_points = 0;           ///< ... of them on the bin's planes, left out of `scene`
   NoiseEstimate noise;                    ///< the scan's, from plane fits on a sample of it
-  DetectionParams params;                 ///< the parameters adapted to the noise (adapt_to_noise), for every stage
+  StageSettings params;                 ///< the parameters adapted to the noise (adapt_to_noise), for every stage
 };
 
 /// Sub-samples the scan to rho_sub, fits normals over k_normals neighbours facing the viewpoint,
 /// and (remove_planes) takes the bin's floor and walls out of the voting points. Fills `out`,
 /// which must outlive nothing but `scan`.
-void prepareScan(const PointCloud& scan, const DetectionParams& p, PreparedScan& out);
+void prepareScan(const PointCloud& scan, const StageSettings& p, PreparedScan& out);
 
 }  // namespace binpose

@@ -163,15 +163,15 @@ std::vector<std::uint32_t> voxelSubsample(const Points& points, float voxel) {
   return kept;
 }
 
-std::vector<std::uint32_t> subsampleScene(const Points& scan, const DetectionParams& params) {
+std::vector<std::uint32_t> subsampleScene(const Points& scan, float rho_sub, Subsampling how, std::uint64_t seed) {
   if (scan.empty()) return {};
-  const float spacing = 1.0f / std::sqrt(params.rho_sub);
+  const float spacing = 1.0f / std::sqrt(rho_sub);
   std::vector<std::uint32_t> chosen = voxelSubsample(scan, spacing);
-  if (params.subsampling == Subsampling::Random) {  // as many points, drawn at random (5.2.1)
+  if (how == Subsampling::Random) {  // as many points, drawn at random (5.2.1)
     const std::size_t count = chosen.size();
     chosen.resize(scan.size());
     std::iota(chosen.begin(), chosen.end(), 0u);
-    Rng rng(params.seed);
+    Rng rng(seed);
     for (std::size_t i = 0; i < count; ++i) std::swap(chosen[i], chosen[i + rng.below(scan.size() - i)]);
     chosen.resize(count);
     std::sort(chosen.begin(), chosen.end());
@@ -191,12 +191,8 @@ PreparedScene orientedScene(const Points& scan, std::span<const std::uint32_t> c
 }
 
 PreparedScene prepareScene(const Points& scan, const PointGrid& scan_grid, std::span<const std::uint32_t> chosen,
-                           const DetectionParams& params, const PixelNeighbours* pixels) {
-  return orientedScene(scan, chosen, estimateNormals(scan_grid, pixels, scan, chosen, params.k_normals, params.viewpoint));
-}
-
-PreparedScene prepareScene(const Points& scan, const PointGrid& scan_grid, const DetectionParams& params) {
-  return prepareScene(scan, scan_grid, subsampleScene(scan, params), params);
+                           int k, const Vec3& viewpoint, const PixelNeighbours* pixels) {
+  return orientedScene(scan, chosen, estimateNormals(scan_grid, pixels, scan, chosen, k, viewpoint));
 }
 
 std::vector<std::vector<std::uint32_t>> makeSubGroups(const Points& points, float eta, float r, std::size_t min_size) {

@@ -38,7 +38,7 @@ struct GroupOutcome {
 
 /// The buffers and the outcome of one place in a batch (the outcome is kept until it is taken).
 struct Slot {
-  Slot(const ModelDatabase& db, const DetectionParams& p, const PartSymmetry& symmetry)
+  Slot(const ModelDatabase& db, const StageSettings& p, const PartSymmetry& symmetry)
       : voter(db, symmetry.candidatesPerPoint(p), p.candidate_spacing, symmetry.votingOrbits()) {}
   Voter voter;
   std::vector<Correspondence> candidates;
@@ -50,7 +50,7 @@ struct Slot {
 /// Everything a sub-group reads (nothing it writes is shared).
 struct Matcher {
   const ModelDatabase& db;
-  const DetectionParams& p;
+  const StageSettings& p;
   const PreparedModel& icp_model;     ///< ICP's share of the model points
   const PreparedModel& scored_model;  ///< all of them, for the score
   const PreparedScene& scene;

@@ -164,7 +164,7 @@ TEST(DetectCli, BadInputExitsTwoWithOneLine) {
 
 TEST(DetectCli, ParametersFromJsonAndPreset) {
   const std::string params = test::tempPath("params.json");
-  test::writeAll(params, R"({"e_gmax": 2.25, "C_n": 9, "subsampling": "random"})");
+  test::writeAll(params, R"({"e_gmax": 2.25, "C_n": 9, "use_symmetry": false})");
   const std::string scene = test::tempPath("flat.ply");
   Points flat;
   for (int i = 0; i < 50; ++i)
@@ -177,6 +177,7 @@ TEST(DetectCli, ParametersFromJsonAndPreset) {
   const auto p = nlohmann::json::parse(test::readAll(out))["params"];
   EXPECT_DOUBLE_EQ(p["e_gmax"].get<double>(), 2.25);  // from the file
   EXPECT_EQ(p["C_n"].get<int>(), 10);                 // the command line wins over the file
-  EXPECT_EQ(p["subsampling"].get<std::string>(), "random");
-  EXPECT_FALSE(p["refine"].get<bool>());  // thesis preset
+  EXPECT_FALSE(p["use_symmetry"].get<bool>());
+  EXPECT_EQ(p["pipeline"].get<std::string>(), "thesis");  // the preset
+  EXPECT_FALSE(p["refine"].get<bool>());
 }

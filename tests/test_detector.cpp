@@ -6,6 +6,7 @@
 #include <binpose/shapes.hpp>
 #include <binpose/simulation.hpp>
 
+#include "stage_settings.hpp"
 #include "synthetic.hpp"
 
 #include <fstream>
@@ -23,8 +24,13 @@ namespace {
 /// candidate per point, C_n = 8, k = 6, a detection scoring 0.8 removes its points. Not a
 /// preset: it keeps the path of votes per sub-group with verification tested, which local votes
 /// (the default) and the thesis preset (no verification) do not take.
-DetectionParams subGroupVotes() {
-  DetectionParams p = defaultPreset();
+/// Every value of the stages for a preset's user values on a model of this diameter.
+StageSettings stagesFor(const DetectionParams& user, float diameter) {
+  return stageSettings(scaledToModel(user, diameter), diameter);
+}
+
+StageSettings subGroupVotes(float diameter) {
+  StageSettings p = stagesFor(defaultPreset(), diameter);
   p.local_votes = false;
   p.voter_spacing = p.partner_spacing = p.candidate_spacing = 0.0f;
   p.candidates_per_point = 1;
@@ -37,8 +43,8 @@ DetectionParams subGroupVotes() {
 }
 
 /// A preset by name, or "sub-group votes".
-DetectionParams paramsNamed(const std::string& name) {
-  return name == "sub-group votes" ? subGroupVotes() : presetByName(name);
+StageSettings paramsNamed(const std::string& name, float diameter) {
+  return name == "sub-group votes" ? subGroupVotes(diameter) : stagesFor(presetByName(name), diameter);
 }
 
 struct Errors {
@@ -160,13 +166,14 @@ TEST(Detector, FindsEveryCopyAtKnownPoses) {
   // "low explain_score": every detection's pose blocks the cliques that give it again. A wrong
   // pose of copy 1 (score 0.39) once hid the right one; a different pose of the same place must
   // still be verified.
-  DetectionParams low_explain = defaultPreset();
+  const float diameter = db.model().diameter;
+  StageSettings low_explain = stagesFor(defaultPreset(), diameter);
   low_explain.explain_score = 0.15f;
-  const std::pair<const char*, DetectionParams> runs[] = {
-      {"default", defaultPreset()}, {"sub-group votes", subGroupVotes()}, {"low explain_score", low_explain}};
+  const std::pair<const char*, StageSettings> runs[] = {
+      {"default", stagesFor(defaultPreset(), diameter)}, {"sub-group votes", subGroupVotes(diameter)}, {"low explain_score", low_explain}};
   for (const auto& [preset, params] : runs) {
   SCOPED_TRACE(preset);
-  const Detector detector(db, scaledToModel(params, db.model().diameter));
+  const Detector detector(db, params);
   const DetectionResult result = detector.detect(scan);
   const Vec3 c = centroidOf(db.model().points);
   std::vector<int> found(truth.size(), 0);
@@ -194,7 +201,7 @@ TEST(Detector, SameResultWhateverTheThreadCount) {
   const std::vector<Pose> truth{test::randomPose(rng, Vec3(-60, 0, 500)), test::randomPose(rng, Vec3(60, 0, 500))};
   const PointCloud scan = test::renderCopies(mesh, truth, {}, [](std::size_t, const Vec3&) { return true; });
   for (const char* preset : {"default", "sub-group votes", "thesis"}) {
-    const Detector detector(ipdDatabase(), scaledToModel(paramsNamed(preset), ipdDatabase().model().diameter));
+    const Detector detector(ipdDatabase(), paramsNamed(preset, ipdDatabase().model().diameter));
     DetectionResult one;
     {
       tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
@@ -242,7 +249,7 @@ TEST(Detector, BinGivesTheSameResultWhateverTheThreadCount) {
   const ModelDatabase& db = capBin().db;
   const PointCloud& scan = capBin().scene.cloud;
   for (const char* preset : {"default", "sub-group votes"}) {
-    const Detector detector(db, scaledToModel(paramsNamed(preset), db.model().diameter));
+    const Detector detector(db, paramsNamed(preset, db.model().diameter));
     DetectionResult one;
     {
       tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
@@ -268,12 +275,12 @@ TEST(Detector, BinGivesTheSameResultWhateverTheThreadCount) {
 namespace {
 
 /// The cap bin's detections with the default preset as it is and changed by `change`.
-std::pair<DetectionResult, DetectionResult> capBinFastAnd(const std::function<void(DetectionParams&)>& change) {
+std::pair<DetectionResult, DetectionResult> capBinFastAnd(const std::function<void(StageSettings&)>& change) {
   const ModelDatabase& db = capBin().db;
-  DetectionParams changed = defaultPreset();
+  StageSettings changed = stagesFor(defaultPreset(), db.model().diameter);
   change(changed);
   return {Detector(db, scaledToModel(defaultPreset(), db.model().diameter)).detect(capBin().scene.cloud),
-          Detector(db, scaledToModel(changed, db.model().diameter)).detect(capBin().scene.cloud)};
+          Detector(db, changed).detect(capBin().scene.cloud)};
 }
 
 }  // namespace
@@ -283,7 +290,7 @@ std::pair<DetectionResult, DetectionResult> capBinFastAnd(const std::function<vo
 TEST(Detector, CliquesNearATriedPoseAreNotVerifiedAgain) {
   const ModelDatabase& db = capBin().db;
   const SimulatedScene& bin = capBin().scene;
-  const auto [skipping, all] = capBinFastAnd([](DetectionParams& p) { p.tried_share = 0.0f; });
+  const auto [skipping, all] = capBinFastAnd([](StageSettings& p) { p.tried_share = 0.0f; });
   EXPECT_LT(skipping.refined, all.refined);
   const Vec3 c = centroidOf(db.model().points);
   auto rightCopies = [&](const DetectionResult& r) {  // copies found within 0.1 diameter
@@ -307,7 +314,7 @@ TEST(Detector, CliquesNearATriedPoseAreNotVerifiedAgain) {
 // the same place with the same score either way (the dropped ones were duplicates).
 TEST(Detector, IcpStopsAtAnObjectAlreadyFound) {
   const ModelDatabase& db = capBin().db;
-  const auto [stopping, full] = capBinFastAnd([](DetectionParams& p) { p.refound_share = 0.0f; });
+  const auto [stopping, full] = capBinFastAnd([](StageSettings& p) { p.refound_share = 0.0f; });
   EXPECT_GT(stopping.refound, 0u);
   EXPECT_EQ(full.refound, 0u);
   EXPECT_EQ(stopping.refined, full.refined);
@@ -340,7 +347,7 @@ TEST(Detector, CapsStackedRimToRimAreBothFound) {
   const Vec3 c = centroidOf(db.model().points);
   for (const char* preset : {"default", "sub-group votes"}) {
     SCOPED_TRACE(preset);
-    const DetectionResult result = Detector(db, scaledToModel(paramsNamed(preset), db.model().diameter)).detect(scan);
+    const DetectionResult result = Detector(db, paramsNamed(preset, db.model().diameter)).detect(scan);
     for (std::size_t t = 0; t < truth.size(); ++t) {
       const Vec3 axis = truth[t].linear().col(2);  // the cap's axis of revolution (model z)
       const bool found = std::any_of(result.detections.begin(), result.detections.end(), [&](const Detection& d) {
@@ -361,9 +368,9 @@ TEST(Detector, PoseJustShortOfThePrescreenIsRetried) {
   const Ipd8Bin16 b;
   // Without mirror_retries, as when this copy was first found by the retry: a sub-group that
   // then runs past a mirror-image clique changes which points are left around copy 1.
-  DetectionParams params = defaultPreset();
+  StageSettings params = stagesFor(defaultPreset(), b.db.model().diameter);
   params.mirror_retries = 0;
-  const DetectionResult result = Detector(b.db, scaledToModel(params, b.db.model().diameter)).detect(b.bin.cloud);
+  const DetectionResult result = Detector(b.db, params).detect(b.bin.cloud);
   EXPECT_TRUE(checkDetections(result, b.truth, b.eval, 1)) << "copy 1 missed; " << result.detections.size() << " detections";
 }
 
@@ -477,7 +484,7 @@ TEST(RealScans, ParasaurolophusInUwaRs1) {
   const Pose reference = readPose(test::dataPath("uwa/REFERENCE_pose_parasaurolophus_in_rs1_DERIVED.txt"));
   const Vec3 c = centroidOf(db.model().points);
   for (const char* preset : {"default", "sub-group votes", "thesis"}) {
-    const Detector detector(db, scaledToModel(paramsNamed(preset), model.diameter));
+    const Detector detector(db, paramsNamed(preset, model.diameter));
     const DetectionResult result = detector.detect(scan);
     ASSERT_FALSE(result.detections.empty()) << preset;
     const Errors e = poseErrors(result.detections.front().pose, reference, c);
@@ -507,53 +514,31 @@ TEST(RealScans, MilkCartonInPclScene) {
               result.detections.size() > 1 ? result.detections[1].score : 0.0f, result.timing.total_ms);
 }
 
-TEST(Params, MirrorRetriesAreReadAndAbsurdValuesAreRejected) {
-  DetectionParams p = defaultPreset();
-  applyJson(p, R"({"mirror_retries": 3})", "test");
-  EXPECT_EQ(p.mirror_retries, 3);
-  EXPECT_NO_THROW(validate(p));
-  for (const int bad : {-1, 11}) {
-    p.mirror_retries = bad;
-    EXPECT_THROW(validate(p), Error) << bad;
+// The internal values are not the user's to set: a parameter file naming one is refused, and an
+// absurd value set inside the project is caught before detection.
+TEST(Params, InternalValuesAreNotReadAndAbsurdOnesAreRejected) {
+  DetectionParams user = defaultPreset();
+  for (const char* key : {"mirror_retries", "prescreen_retry_steps", "retry_all_voters", "grazing_angle", "local_votes"})
+    EXPECT_THROW(applyJson(user, fmt::format(R"({{"{}": 1}})", key), "test"), Error) << key;
+  const StageSettings good = stagesFor(defaultPreset(), 60.0f);
+  EXPECT_NO_THROW(validateStages(good));
+  const std::vector<std::pair<const char*, std::function<void(StageSettings&)>>> bad = {
+      {"mirror_retries -1", [](StageSettings& s) { s.mirror_retries = -1; }},
+      {"mirror_retries 11", [](StageSettings& s) { s.mirror_retries = 11; }},
+      {"prescreen_retry_steps -1", [](StageSettings& s) { s.prescreen_retry_steps = -1; }},
+      {"prescreen_retry_share 1.5", [](StageSettings& s) { s.prescreen_retry_share = 1.5f; }},
+      {"prescreen_retry_share NaN", [](StageSettings& s) { s.prescreen_retry_share = NAN; }},
+      {"grazing_angle 0", [](StageSettings& s) { s.grazing_angle = 0.0f; }},
+      {"grazing_angle 95", [](StageSettings& s) { s.grazing_angle = 95.0f; }},
+      {"grazing_angle NaN", [](StageSettings& s) { s.grazing_angle = NAN; }},
+      {"retry_min_score 1.5", [](StageSettings& s) { s.retry_min_score = 1.5f; }},
+      {"retry_min_clique -1", [](StageSettings& s) { s.retry_min_clique = -1; }},
+      {"verify_tolerance 0", [](StageSettings& s) { s.verify_tolerance = 0.0f; }},
+      {"e_gmax NaN", [](StageSettings& s) { s.e_gmax = NAN; }},
+  };
+  for (const auto& [name, change] : bad) {
+    StageSettings s = good;
+    change(s);
+    EXPECT_THROW(validateStages(s), Error) << name;
   }
-}
-
-TEST(Params, PrescreenRetryIsReadAndAbsurdValuesAreRejected) {
-  DetectionParams p = defaultPreset();
-  applyJson(p, R"({"prescreen_retry_steps": 3, "prescreen_retry_share": 0.5})", "test");
-  EXPECT_EQ(p.prescreen_retry_steps, 3);
-  EXPECT_FLOAT_EQ(p.prescreen_retry_share, 0.5f);
-  EXPECT_NO_THROW(validate(p));
-  DetectionParams bad = p;
-  bad.prescreen_retry_steps = -1;
-  EXPECT_THROW(validate(bad), Error);
-  bad = p;
-  bad.prescreen_retry_share = 1.5f;
-  EXPECT_THROW(validate(bad), Error);
-  bad = p;
-  bad.prescreen_retry_share = NAN;
-  EXPECT_THROW(validate(bad), Error);
-}
-
-TEST(Params, SecondPassIsReadAndAbsurdValuesAreRejected) {
-  DetectionParams p = defaultPreset();
-  applyJson(p, R"({"retry_all_voters": false, "retry_min_clique": 4, "retry_min_score": 0.5, "grazing_angle": 75})", "test");
-  EXPECT_FALSE(p.retry_all_voters);
-  EXPECT_EQ(p.retry_min_clique, 4);
-  EXPECT_FLOAT_EQ(p.retry_min_score, 0.5f);
-  EXPECT_FLOAT_EQ(p.grazing_angle, 75.0f);
-  EXPECT_NO_THROW(validate(p));
-  for (const float angle : {0.0f, -10.0f, 95.0f, NAN}) {
-    DetectionParams bad = p;
-    bad.grazing_angle = angle;
-    EXPECT_THROW(validate(bad), Error) << angle;
-  }
-  for (const float score : {-0.1f, 1.5f, NAN}) {
-    DetectionParams bad = p;
-    bad.retry_min_score = score;
-    EXPECT_THROW(validate(bad), Error) << score;
-  }
-  DetectionParams bad = p;
-  bad.retry_min_clique = -1;
-  EXPECT_THROW(validate(bad), Error);
 }

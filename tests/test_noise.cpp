@@ -63,19 +63,19 @@ TEST(Noise, PlaneFitResidualsMeasureTheNoise) {
 // A clean scan keeps every value; a noisy one raises the normals' k (capped), e_gmax and the
 // tolerances, and never lowers a value the user set higher.
 TEST(Noise, OnlyANoisyScanRaisesTheValues) {
-  const DetectionParams p = defaultPreset();
-  const DetectionParams clean = adaptedToNoise(p, {0.05f, 1.5f, 256});
+  const StageSettings p = stageSettings(defaultPreset(), 60.0f);
+  const StageSettings clean = adaptedToNoise(p, {0.05f, 1.5f, 256});
   EXPECT_EQ(clean.k_normals, p.k_normals);
   EXPECT_EQ(clean.e_gmax, p.e_gmax);
   EXPECT_EQ(clean.verify_tolerance, p.verify_tolerance);
   EXPECT_EQ(clean.plane_tolerance, p.plane_tolerance);
-  const DetectionParams noisy = adaptedToNoise(p, {1.0f, 2.0f, 256});
+  const StageSettings noisy = adaptedToNoise(p, {1.0f, 2.0f, 256});
   EXPECT_GT(noisy.k_normals, p.k_normals);
   EXPECT_LE(noisy.k_normals, 32);
   EXPECT_GT(noisy.e_gmax, 2.0f);
   EXPECT_GT(noisy.verify_tolerance, 1.5f);
   EXPECT_GT(noisy.plane_tolerance, 2.0f);
-  DetectionParams loose = p;
+  StageSettings loose = p;
   loose.e_gmax = 10.0f;
   EXPECT_EQ(adaptedToNoise(loose, {1.0f, 2.0f, 256}).e_gmax, 10.0f);
   EXPECT_EQ(adaptedToNoise(p, {1.0f, 2.0f, 0}).k_normals, p.k_normals);  // no estimate: no change

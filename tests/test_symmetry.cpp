@@ -6,6 +6,7 @@
 #include <binpose/simulation.hpp>
 #include <binpose/symmetry.hpp>
 
+#include "stage_settings.hpp"
 #include "synthetic.hpp"
 #include "test_util.hpp"
 
@@ -195,10 +196,10 @@ TEST(Revolution, DetectorFindsTheCapsOfABin) {
   };
   std::size_t found[2] = {0, 0}, half_visible = 0;
   for (const bool revolution : {false, true}) {
-    DetectionParams p = defaultPreset();
+    StageSettings p = stageSettings(scaledToModel(defaultPreset(), model.diameter), model.diameter);
     p.use_revolution = revolution;
     p.use_cyclic_symmetry = false;  // point to point without (a body of revolution has every order n)
-    const Detector detector(db, scaledToModel(p, model.diameter));
+    const Detector detector(db, p);
     EXPECT_EQ(detector.orbits() != nullptr, revolution);
     const DetectionResult result = detector.detect(bin.cloud);
     std::size_t wrong = 0;

@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -67,5 +68,23 @@ Graph consistencyGraph(std::span<const Correspondence> cps, const Points& scene,
 /// `work_limit` nodes; if it has to stop, the best clique found so far is returned with
 /// exact = false. Deterministic.
 CliqueResult maximumClique(const Graph& g, std::uint64_t work_limit = 1000);
+
+/// maximumClique's buffers, for a caller that searches many graphs: reused from one call to the
+/// next (one workspace per thread of the caller's: a call writes into it).
+class CliqueWorkspace {
+ public:
+  CliqueWorkspace();
+  ~CliqueWorkspace();
+  CliqueWorkspace(CliqueWorkspace&&) noexcept;
+  CliqueWorkspace& operator=(CliqueWorkspace&&) noexcept;
+
+ private:
+  struct Buffers;
+  std::unique_ptr<Buffers> buffers_;
+  friend CliqueResult maximumClique(const Graph& g, std::uint64_t work_limit, CliqueWorkspace& workspace);
+};
+
+/// maximumClique with the buffers of `workspace`; the same result.
+CliqueResult maximumClique(const Graph& g, std::uint64_t work_limit, CliqueWorkspace& workspace);
 
 }  // namespace binpose

@@ -60,4 +60,15 @@ Graph cyclicConsistencyGraph(std::span<const Correspondence> cps, const Points& 
 /// or a mirror image.
 PoseFit solveCyclicPose(const CyclicSymmetry& sym, const Points& model, const Points& scene);
 
+/// solveCyclicPose's buffers, reused by a caller that fits many cliques (a bin's clique fits
+/// allocated them thousands of times).
+struct CyclicPoseBuffers {
+  Points images, chosen, anchor_model, anchor_scene;
+  std::vector<float> misfit;
+  std::vector<double> pose;  ///< solvePose's
+};
+
+/// solveCyclicPose with the caller's buffers; the same fit.
+PoseFit solveCyclicPose(const CyclicSymmetry& sym, const Points& model, const Points& scene, CyclicPoseBuffers& buffers);
+
 }  // namespace binpose

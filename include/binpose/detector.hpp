@@ -52,18 +52,25 @@ struct Hypothesis {
 
 class ModelShape;
 class PartSymmetry;
+struct StageSettings;
 
 class Detector {
  public:
   /// `params` in absolute units (see scaledToModel); validated here.
   Detector(const ModelDatabase& db, const DetectionParams& params);
+  /// Every value of the stages given (src/stage_settings.hpp: for tests and benchmarks of the
+  /// project, which show what the internal values do); validated here.
+  Detector(const ModelDatabase& db, const StageSettings& settings);
   ~Detector();
   Detector(Detector&&) noexcept;
 
   /// Every instance of the model in the scan. An empty scan gives no detection.
   [[nodiscard]] DetectionResult detect(const PointCloud& scan) const;
 
-  [[nodiscard]] const DetectionParams& params() const { return params_; }
+  /// The user's values the detector runs with.
+  [[nodiscard]] const DetectionParams& params() const;
+  /// Every value of the stages (src/stage_settings.hpp), in absolute units.
+  [[nodiscard]] const StageSettings& settings() const { return *settings_; }
   /// The model's orbits when it is matched as a body of revolution (use_revolution), else null.
   [[nodiscard]] const Orbits* orbits() const;
   /// The model's n-fold symmetry when it is matched by classes of images (use_cyclic_symmetry), else null.
@@ -71,7 +78,7 @@ class Detector {
 
  private:
   const ModelDatabase& db_;
-  DetectionParams params_;
+  std::unique_ptr<const StageSettings> settings_;
   PreparedModel icp_model_;     ///< the model points ICP pairs up (icp_model_points of them)
   PreparedModel scored_model_;  ///< all the model points, for the score
   std::unique_ptr<const PartSymmetry> symmetry_;  ///< none, a body of revolution, or n-fold symmetry

@@ -2,7 +2,6 @@
 // Beyond the thesis: the bin's floor and walls (and a table under the parts) taken out of the
 // sampled scene before voting. Their points pair with nothing on the part, yet cost as much to
 // vote as the part's own points and feed the clique search with wrong correspondences.
-#include <binpose/params.hpp>
 #include <binpose/types.hpp>
 
 #include <cmath>
@@ -32,10 +31,6 @@ struct Plane {
   float d = 0;
   [[nodiscard]] float distance(const Vec3& x) const { return std::abs(normal.dot(x) - d); }
 };
-
-/// The plane search the detector runs for `params` (absolute units): its plane_min_area and
-/// plane_tolerance, patches linked over 2.5 sample spacings (1 / sqrt(rho_sub)), its seed.
-PlaneParams planeParams(const DetectionParams& params);
 
 /// Normals not all computed when the planes are looked for (see pixelNormals's pending fits):
 /// `pending` flags the points whose normal is still to come; `finish(indices)` computes those

@@ -1,4 +1,5 @@
 #pragma once
+#include <vector>
 // Rigid pose from correspondences (thesis 4.6, eq. 17-28: Horn et al. 1988).
 #include <binpose/types.hpp>
 
@@ -18,5 +19,7 @@ struct PoseFit {
 /// order). Always a proper rotation; a set whose best orthogonal fit is a reflection (a
 /// mirrored copy) is refused (ok = false) rather than forced into a wrong rotation.
 PoseFit solvePose(const Points& model, const Points& scene);
+/// solvePose with the caller's scratch `buffer` (reused from one call to the next); the same fit.
+PoseFit solvePose(const Points& model, const Points& scene, std::vector<double>& buffer);
 
 }  // namespace binpose

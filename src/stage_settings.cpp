@@ -1,0 +1,96 @@
+// The stages' values: the user's and the pipeline's internal ones, scaled to the model.
+#include "stage_settings.hpp"
+
+#include <binpose/model.hpp>
+
+#include <cmath>
+#include <fmt/format.h>
+
+namespace binpose {
+namespace {
+
+/// Chapter 5 as written: random sub-sampling, one candidate per point voting in each
+/// sub-group, every detection removing its points; no planes, noise adaptation or pre-screen.
+StageSettings thesisStages() {
+  StageSettings s;
+  s.subsampling = Subsampling::Random;
+  s.adapt_to_noise = false;
+  s.remove_planes = false;
+  s.candidates_per_point = 1;
+  s.candidate_spacing = 0.0f;
+  s.local_votes = false;
+  s.voter_spacing = 0.0f;
+  s.partner_spacing = 0.0f;
+  s.retry_all_voters = false;
+  s.mirror_retries = 0;
+  s.prescreen = false;
+  s.prescreen_retry_steps = 0;
+  s.removal_score = 0.0f;
+  return s;
+}
+
+void positive(float v, const char* name) {
+  if (!(v > 0) || !std::isfinite(v)) throw Error(fmt::format("{} must be a positive length in mm, got {}", name, v));
+}
+
+void nonNegative(float v, const char* name) {
+  if (!(v >= 0) || !std::isfinite(v)) throw Error(fmt::format("{} must be >= 0, got {}", name, v));
+}
+
+void share(float v, const char* name) {
+  if (!(v >= 0 && v <= 1)) throw Error(fmt::format("{} must lie in [0, 1], got {}", name, v));
+}
+
+void range(int v, int lo, int hi, const char* name) {
+  if (v < lo || v > hi) throw Error(fmt::format("{} must lie in [{}, {}], got {}", name, lo, hi, v));
+}
+
+}  // namespace
+
+StageSettings stageSettings(const DetectionParams& params, float model_diameter) {
+  StageSettings s = params.pipeline == Pipeline::Thesis ? thesisStages() : StageSettings{};
+  static_cast<DetectionParams&>(s) = params;
+  s.use_revolution = s.use_cyclic_symmetry = params.use_symmetry;
+  const float k = thesisScale(model_diameter);
+  s.vote_radius *= k;
+  s.voter_spacing *= k;
+  s.partner_spacing *= k;
+  s.candidate_spacing *= k;
+  s.plane_min_area *= k * k;
+  s.plane_tolerance *= k;
+  s.icp_max_distance *= k;
+  s.verify_tolerance *= k;
+  return s;
+}
+
+void validateStages(const StageSettings& s) {
+  validate(static_cast<const DetectionParams&>(s));
+  positive(s.vote_radius, "vote_radius");
+  nonNegative(s.plane_min_area, "plane_min_area");
+  positive(s.plane_tolerance, "plane_tolerance");
+  nonNegative(s.candidate_spacing, "candidate_spacing");
+  nonNegative(s.partner_spacing, "partner_spacing");
+  nonNegative(s.voter_spacing, "voter_spacing");
+  positive(s.icp_max_distance, "icp_max_distance");
+  positive(s.verify_tolerance, "verify_tolerance");
+  range(s.icp_model_points, 0, 1 << 24, "icp_model_points");
+  range(s.icp_iterations, 0, 1000, "icp_iterations");
+  share(s.removal_score, "removal_score");
+  share(s.explain_score, "explain_score");
+  share(s.retry_min_score, "retry_min_score");
+  range(s.retry_min_clique, 0, 1 << 20, "retry_min_clique");
+  if (!(s.grazing_angle > 0 && s.grazing_angle <= 90))
+    throw Error(fmt::format("grazing_angle must lie in (0, 90] degrees, got {}", s.grazing_angle));
+  share(s.tried_share, "tried_share");
+  share(s.refound_share, "refound_share");
+  range(s.prescreen_retry_steps, 0, 20, "prescreen_retry_steps");
+  share(s.prescreen_retry_share, "prescreen_retry_share");
+  range(s.candidates_per_point, 1, 64, "candidates_per_point");
+  if (s.clique_work_limit < 1) throw Error("clique_work_limit must be >= 1");
+  range(s.mirror_retries, 0, 10, "mirror_retries");
+  range(s.revolution_candidates, 1, 64, "revolution_candidates");
+  if (!(s.revolution_angle_tolerance > 0 && s.revolution_angle_tolerance < 90))
+    throw Error(fmt::format("revolution_angle_tolerance must lie in (0, 90) degrees, got {}", s.revolution_angle_tolerance));
+}
+
+}  // namespace binpose

@@ -1,0 +1,76 @@
+#pragma once
+// Every value the stages read: the user's (DetectionParams) and the internal ones, which follow
+// the pipeline (Pipeline::Binpose or Thesis). A user does not set the internal values; tests and
+// benchmarks inside the project may, to show what each one does. Why each is what it is:
+// docs/design.md.
+#include <binpose/params.hpp>
+#include <binpose/scene.hpp>
+
+#include <cstdint>
+
+namespace binpose {
+
+struct StageSettings : DetectionParams {
+  // --- scene preparation (5.2.1-5.2.2) ------------------------------------------------------
+  Subsampling subsampling = Subsampling::Voxel;
+  /// Measure a depth image's noise and raise what depends on it for a noisy one (k_normals,
+  /// e_gmax, plane_tolerance, verify_tolerance; noise.cpp).
+  bool adapt_to_noise = true;
+  /// Take the bin's floor and walls (connected flat patches of at least plane_min_area) out of
+  /// the voting points (planes.hpp); they stay in the scan for ICP and verification.
+  bool remove_planes = true;
+  float plane_min_area = 0.0f;   ///< mm^2; 0: the model's largest possible flat face (boundingFaceArea)
+  float plane_tolerance = 1.5f;  ///< largest distance of a plane's point from it, mm
+
+  // --- votes (4.3-4.4) ----------------------------------------------------------------------
+  int candidates_per_point = 12;  ///< model points kept per scene point (the thesis: 1, eq. 12's maximum)
+  float candidate_spacing = 2.7f; ///< least model distance between a point's candidates, mm (0: none)
+  /// Each scene point votes once with its neighbours within vote_radius, and its sub-groups
+  /// reuse its candidates (false: it votes in every sub-group with that group's points, 4.3).
+  bool local_votes = true;
+  float vote_radius = 40.0f;      ///< partners of a local vote lie within this, mm
+  float voter_spacing = 5.0f;     ///< one voting point per cube of this side, mm (0: every point votes)
+  float partner_spacing = 8.0f;   ///< one partner per cube of this side, mm (0: every point)
+  /// After all sub-groups, those whose largest clique reached retry_min_clique but not C_n run
+  /// again with every point voting (with voter_spacing only); their detections must score
+  /// retry_min_score without grazing model points.
+  bool retry_all_voters = true;
+  int retry_min_clique = 3;
+  float retry_min_score = 0.4f;
+  float grazing_angle = 80.0f;    ///< model points seen at more than this to the line of sight are grazing, degrees
+
+  // --- clique and pose (4.5-4.6) --------------------------------------------------------------
+  std::uint64_t clique_work_limit = 1000;  ///< branch-and-bound nodes per clique search (the best found is kept)
+  int mirror_retries = 1;     ///< searches again without a clique that fits only a mirror image, this many times
+
+  // --- symmetry (set from use_symmetry) -------------------------------------------------------
+  bool use_revolution = true;       ///< a body of revolution votes for orbits (symmetry.hpp)
+  bool use_cyclic_symmetry = true;  ///< an n-fold symmetric part votes for classes of images (cyclic_symmetry.hpp)
+  float revolution_angle_tolerance = 15.0f;  ///< each angle of a symmetric pair's consistency test, degrees
+  int revolution_candidates = 4;    ///< candidates per point of a symmetric part (at most candidates_per_point)
+
+  // --- verification: pre-screen, ICP, score ---------------------------------------------------
+  float verify_tolerance = 1.0f;  ///< a scan point within this supports a model point, mm
+  bool prescreen = true;          ///< drop a pose scoring under min_score at the ICP gate before ICP
+  int prescreen_retry_steps = 2;  ///< coarse ICP steps for a pose just short of the pre-screen (0: none)
+  float prescreen_retry_share = 0.33f;  ///< ... when it scores at least this share of min_score
+  int icp_iterations = 20;
+  int icp_model_points = 1000;    ///< model points ICP pairs up (an even share; 0: all)
+  float icp_max_distance = 3.0f;  ///< ICP's correspondence gate at the start, mm
+
+  // --- removal and duplicates (5.2.6) -----------------------------------------------------------
+  float removal_score = 0.6f;     ///< a detection scoring this removes its points (0: every one, as the thesis)
+  float explain_score = 0.3f;     ///< a detection scoring this is a found object: its pose is not verified again
+  float tried_share = 0.5f;       ///< a clique pose this close (share of 0.1 d) to one verified is not verified again
+  float refound_share = 0.25f;    ///< ICP stops when this close (share of 0.1 d) to a found object
+};
+
+/// The stages' values for `params` (absolute units, see scaledToModel) on a model of this
+/// diameter: the pipeline's internal values, their distances scaled like the user's (by
+/// diameter / 60 mm), plane_min_area resolved from the model when 0 is left to the caller.
+StageSettings stageSettings(const DetectionParams& params, float model_diameter);
+
+/// validate() of the user's values, then of the internal ones (tests and benchmarks set them).
+void validateStages(const StageSettings& s);
+
+}  // namespace binpose
