@@ -6,6 +6,8 @@
 
 #include "oriented_lanes.hpp"
 
+#include <Eigen/Eigenvalues>
+
 #include <cmath>
 #include <numeric>
 #include <fmt/format.h>
@@ -196,6 +198,25 @@ Plane bestHypothesis(const detail::OrientedLanes& probe_points, const std::vecto
   return best;
 }
 
+/// The least-squares plane of `inliers` (their centroid, the covariance's least eigenvector),
+/// its normal on the side of `like`'s: a hypothesis takes one point's normal, as noisy as the
+/// sensor, and a plane tilted by it leaves the far side of a floor out of tolerance.
+Plane refitted(const Points& points, std::span<const std::uint32_t> inliers, const Plane& like) {
+  if (inliers.size() < 3) return like;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto i : inliers) mean += points[i].cast<double>();
+  mean /= static_cast<double>(inliers.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const auto i : inliers) {
+    const Eigen::Vector3d d = points[i].cast<double>() - mean;
+    cov += d * d.transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+  Vec3 n = eig.eigenvectors().col(0).cast<float>();
+  if (n.dot(like.normal) < 0) n = -n;
+  return {n, n.dot(mean.cast<float>())};
+}
+
 }  // namespace
 
 std::vector<char> largePlanes(const Points& points, const Points& normals, float density, const PlaneParams& params,
@@ -228,7 +249,6 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
   struct Background {
     Plane plane;
     std::vector<std::uint32_t> inliers;
-    bool taken = false;
   };
   std::vector<Background> background;
   background.reserve(static_cast<std::size_t>(std::max(0, params.max_planes)));  // no move under a running task
@@ -250,28 +270,32 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
     finish(drawn);
     hypotheses.clear();
     for (const auto s : drawn) hypotheses.push_back({normals[s], normals[s].dot(points[s])});
-    const Plane best = bestHypothesis(probe_points, hypotheses, params.tolerance, min_cos, counts);
-    inliers.clear();
-    for (const auto i : left)
-      if (inlier(i, best)) inliers.push_back(i);
+    Plane best = bestHypothesis(probe_points, hypotheses, params.tolerance, min_cos, counts);
+    for (int fit = 0; fit < 2; ++fit) {  // the hypothesis's inliers, then those of their own plane
+      if (fit == 1) best = refitted(points, inliers, best);
+      inliers.clear();
+      for (const auto i : left)
+        if (inlier(i, best)) inliers.push_back(i);
+    }
     if (inliers.size() < min_count) break;  // the largest plane left is too small: done
     for (const auto i : inliers) tried[i] = 1;  // small patches of it stay in the scene, and are not tried again
     std::size_t behind = 0;
     for (const Vec3& p : points) behind += best.normal.dot(p) - best.d < -3.0f * params.tolerance;
     if (static_cast<float>(behind) > params.max_behind * static_cast<float>(points.size())) continue;  // not background
-    Background* b = &background.emplace_back(Background{best, inliers, false});
+    // The farthest surface, the bin's floor or a table: background for verification even where
+    // what the parts leave of it is in pieces each smaller than min_count (those stay in the votes).
+    Background* b = &background.emplace_back(Background{best, inliers});
     flood.run([&, b] {
       for (const auto& patch : detail::linkedPatches(points, b->inliers, params.link, b->plane.normal))
         if (patch.size() >= min_count) {
           for (const auto i : patch) plane[i] = 1;
-          b->taken = true;
         }
     });
   }
   flood.wait();
   if (removed)
     for (const Background& b : background)
-      if (b.taken) removed->push_back(b.plane);
+      removed->push_back(b.plane);
   return plane;
 }
 

@@ -21,6 +21,10 @@ bool facesSensor(const Vec3& p, const Vec3& n, const Vec3& viewpoint) { return n
 /// Points per task of the parallel loops: fixed, so the partial sums and their order (and so
 /// every bit of the result) are the same whatever the thread count.
 constexpr std::size_t kChunk = 128;
+/// A model point farther than this many verification tolerances behind the floor or a wall the
+/// scan shows in front of it lies inside that solid: physically impossible, counted as
+/// contradicted (a right pose resting on the floor touches it within the noise).
+constexpr float kInsideMargin = 2.0f;
 static_assert(kChunk % 4 == 0, "a chunk starts on a SIMD lane boundary");
 
 /// One chunk's share of ICP's normal equations.
@@ -425,6 +429,18 @@ long SceneEvidence::cellAt(float u, float v) const {
   return y * width_ + x;
 }
 
+bool SceneEvidence::insideBackground(const Vec3& p, float range, float seen_range, float tolerance) const {
+  const float margin = kInsideMargin * tolerance;
+  for (const Plane& b : background_) {
+    const float side_viewpoint = b.normal.dot(viewpoint_) - b.d, side_point = b.normal.dot(p) - b.d;
+    if (side_viewpoint * side_point >= 0 || std::abs(side_point) <= margin) continue;  // in front, or touching
+    // Where the line of sight crosses the plane; the scan must see the plane there.
+    const float crossing = range * side_viewpoint / (side_viewpoint - side_point);
+    if (std::abs(seen_range - crossing) <= 2 * tolerance) return true;
+  }
+  return false;
+}
+
 Evidence SceneEvidence::evaluate(const Pose& pose, const Points& model_points, const Points& model_normals,
                                  float tolerance, float model_spacing, std::vector<std::uint32_t>* support) const {
   return evaluate(pose, PreparedModel(model_points, model_normals), tolerance, model_spacing, support);
@@ -528,7 +544,10 @@ Evidence SceneEvidence::evaluate(const Pose& pose, const PreparedModel& model, f
         continue;
       }
       const long c = cellAt(f.u, f.v);
-      if (c >= 0 && nearest_[c] > f.range + 2 * tolerance && std::isfinite(nearest_[c])) verdict[i] = kContradicted;
+      if (c < 0 || !std::isfinite(nearest_[c])) continue;
+      // Free space seen through the point, or the point inside the floor or a wall the scan shows.
+      if (nearest_[c] > f.range + 2 * tolerance || insideBackground(f.p, f.range, nearest_[c], tolerance))
+        verdict[i] = kContradicted;
     }
   });
   return tally(facing, verdict, nearest, support);

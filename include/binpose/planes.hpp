@@ -44,12 +44,14 @@ struct LateNormals {
 };
 
 /// Marks the points of large planes: RANSAC on oriented points (each hypothesis is the plane of
-/// one point and its normal), then the inliers split into connected patches, and every patch of
+/// one point and its normal, refitted to its inliers by least squares), then the inliers split
+/// into connected patches, and every patch of
 /// at least `min_area` (at the points' density `density`, points/mm^2) removed. Only background
 /// planes go, with (almost) nothing behind them: the floor, the walls, a table; the tops of a
 /// layer of parts lying flat, touching one another, have the floor behind them and stay, and
 /// coplanar faces of parts that do not touch stay. Normals face the sensor. Returns one flag per
-/// point: 1 on a removed plane; `removed`, when given, receives the planes that lost a patch.
+/// point: 1 on a removed plane; `removed`, when given, receives every background plane found
+/// (with at least min_area of inliers in all, even where no one patch is that large).
 /// Deterministic for a given seed. With `late`, only the normals the search needs are computed
 /// (its hypotheses', its probes', the points near a plane whose angle the fit cannot settle):
 /// the same flags as with every normal.

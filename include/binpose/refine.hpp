@@ -108,7 +108,9 @@ class SceneEvidence {
   /// `background`: the bin's planes (planes.hpp; none by default). A model point within
   /// `background_tolerance` of one is not supported by the scan there: the bin is seen, not the
   /// part. Without this an L-shaped part fits the corner of floor and wall and scores as if it
-  /// were there. Set apart from the constructor: the planes may be found while it runs.
+  /// were there. A model point clearly behind one, where the scan shows the plane in front of
+  /// it, is contradicted: a part cannot lie inside the floor or a wall. Set apart from the
+  /// constructor: the planes may be found while it runs.
   void setBackground(std::vector<Plane> background, float background_tolerance) {
     background_ = std::move(background);
     background_tolerance_ = background_tolerance;
@@ -129,6 +131,10 @@ class SceneEvidence {
   /// Range-image cell of the direction (u, v) (x / z and y / z in the image frame), or -1
   /// outside the image.
   [[nodiscard]] long cellAt(float u, float v) const;
+  /// Whether model point p (at `range` from the viewpoint) lies clearly behind a background
+  /// plane that the scan shows where the line of sight crosses it (`seen_range`: the scan's
+  /// nearest range in p's direction): inside the floor or a wall, where no part can be.
+  [[nodiscard]] bool insideBackground(const Vec3& p, float range, float seen_range, float tolerance) const;
 
   const PointGrid& grid_;
   const PixelNeighbours* pixels_;

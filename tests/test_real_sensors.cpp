@@ -1,0 +1,104 @@
+// End-to-end recognition on what a real sensor gives: a bin seen by the structured-light model
+// (Kinect v1 class) and a real Kinect frame (PCL's milk carton), each against its ground truth.
+#include <binpose/detector.hpp>
+#include <binpose/evaluation.hpp>
+#include <binpose/io.hpp>
+#include <binpose/model_database.hpp>
+#include <binpose/sensor_model.hpp>
+#include <binpose/simulation.hpp>
+
+#include "synthetic.hpp"
+#include "test_util.hpp"
+
+#include <algorithm>
+
+using namespace binpose;
+
+namespace {
+
+/// ADD-S of `estimate` against `truth` (infinite for a copy a diameter away).
+float addS(const Pose& estimate, const Pose& truth, const EvalModel& eval) {
+  if ((estimate * eval.centroid - truth * eval.centroid).norm() > eval.diameter) return INFINITY;
+  return poseErrors(estimate, truth, eval).add_s_mm;
+}
+
+ModelDatabase databaseOf(const OrientedModel& model) { return ModelDatabase::build(model, defaultQuantization(model.diameter)); }
+
+/// Poses on a 4 x 3 grid, 45 mm apart, over the bin's floor (world frame, mm), each turned by
+/// its own random rotation and raised to lie 1 mm above the floor: copies side by side, some
+/// touching.
+std::vector<Pose> gridOfCopies(const OrientedModel& model, int count, std::uint64_t seed) {
+  Rng rng(seed);
+  std::vector<Pose> world;
+  for (int i = 0; i < count; ++i) {
+    const Vec3 at(-67.5f + 45.0f * float(i % 4), -45.0f + 45.0f * float(i / 4), 0.0f);
+    Pose pose = test::randomPose(rng, at);
+    float lowest = INFINITY;
+    for (const Vec3& p : model.points) lowest = std::min(lowest, (pose * p).z());
+    pose.translation().z() += -lowest + 1.0f;
+    world.push_back(pose);
+  }
+  return world;
+}
+
+}  // namespace
+
+// IPD obj 8 (a thin bracket, 2-fold symmetric) in 12 copies, seen by the structured-light model
+// from 800 mm (0.8-0.9 mm noise there, disparity steps, projector shadows, edge drop-outs and
+// flying pixels): no detection off every copy (two lay half under the floor before the floor
+// was taken as background and a part inside it as contradicted), and at least half of the
+// copies more than half visible found.
+TEST(RealSensors, StructuredLightBinWithoutFalseDetections) {
+  REQUIRE_DATA("ipd_parts/models/obj_000008.ply");
+  const Mesh mesh = readMesh(test::dataPath("ipd_parts/models/obj_000008.ply"));
+  const OrientedModel model = prepareModel(mesh, ModelParams{});
+  const ModelDatabase db = databaseOf(model);
+  SensorParams sensor;
+  sensor.distance = 800.0f;
+  sensor.model = sensorModel(SensorKind::StructuredLight);
+  const SimulatedScene bin = renderBin(mesh, gridOfCopies(model, 12, 31), BinParams{}, sensor, 31);
+  const EvalModel eval = makeEvalModel(mesh, readSymmetries(test::dataPath("ipd_parts/models/models_info.json"), "8"));
+  const DetectionResult result = Detector(db, scaledToModel(defaultPreset(), model.diameter)).detect(bin.cloud);
+  EXPECT_GT(result.noise_mm, 0.4f);  // the sensor's noise is seen
+  const float limit = 0.1f * eval.diameter;
+  std::vector<int> found(bin.instances.size(), 0);
+  for (const Detection& d : result.detections) {
+    std::size_t best = 0;
+    float nearest = INFINITY;
+    for (std::size_t t = 0; t < bin.instances.size(); ++t)
+      if (const float e = addS(d.pose, bin.instances[t].pose, eval); e < nearest) {
+        nearest = e;
+        best = t;
+      }
+    EXPECT_LT(nearest, limit) << "a wrong detection, score " << d.score;
+    if (nearest < limit) found[best] = 1;
+  }
+  int half_visible = 0, half_found = 0;
+  for (std::size_t t = 0; t < bin.instances.size(); ++t)
+    if (bin.instances[t].visib_fract > 0.5f) {
+      ++half_visible;
+      half_found += found[t];
+    }
+  ASSERT_GE(half_visible, 6);
+  // 8 of the 12 today (the target is 90 %); without the floor's plausibility, 6 and two false.
+  EXPECT_GE(2 * half_found, half_visible) << half_found << " of " << half_visible << " more than half visible";
+}
+
+// PCL's real Kinect frame: the milk carton's view is found first, at its place in the scene
+// (the view is a subset of the frame: the identity), and nothing else reaches min_score.
+TEST(RealSensors, PclMilkCartonFirstAndNothingElse) {
+  REQUIRE_DATA("pcl_milk/milk.pcd");
+  ModelParams mp;
+  mp.num_points = 2000;  // the view holds about 13 700 points
+  const OrientedModel model = prepareModel(readModelFile(test::dataPath("pcl_milk/milk.pcd"), 1000.0).cloud, mp);
+  const ModelDatabase db = databaseOf(model);
+  const PointCloud scan = readPcd(test::dataPath("pcl_milk/milk_cartoon_all_small_clorox.pcd"), 1000.0);
+  const DetectionResult result = Detector(db, scaledToModel(defaultPreset(), model.diameter)).detect(scan);
+  ASSERT_EQ(result.detections.size(), 1u);
+  const Pose& pose = result.detections.front().pose;
+  Vec3 centroid = Vec3::Zero();
+  for (const Vec3& p : model.points) centroid += p;
+  centroid /= float(model.points.size());
+  EXPECT_LT((pose * centroid - centroid).norm(), 2.0f);
+  EXPECT_LT(test::deg(Eigen::AngleAxisf(pose.linear()).angle()), 2.0);
+}
