@@ -217,6 +217,26 @@ Plane refitted(const Points& points, std::span<const std::uint32_t> inliers, con
   return {n, n.dot(mean.cast<float>())};
 }
 
+/// The points farther than 3 tolerances behind `plane` (on the side away from the sensor) whose
+/// foot on the plane lies within its inliers' extent (their bounding rectangle on it): what the
+/// plane hides. A table's far edge has the room's wall behind it, beyond the table; the tops of a
+/// layer of parts have the floor behind them, under the layer.
+std::size_t pointsBehind(const Points& points, std::span<const std::uint32_t> inliers, const Plane& plane, float tolerance) {
+  const Vec3 u = plane.normal.unitOrthogonal(), v = plane.normal.cross(u);
+  float u0 = INFINITY, u1 = -INFINITY, v0 = INFINITY, v1 = -INFINITY;
+  for (const auto i : inliers) {
+    const float a = u.dot(points[i]), b = v.dot(points[i]);
+    u0 = std::min(u0, a), u1 = std::max(u1, a), v0 = std::min(v0, b), v1 = std::max(v1, b);
+  }
+  std::size_t behind = 0;
+  for (const Vec3& p : points) {
+    if (!(plane.normal.dot(p) - plane.d < -3.0f * tolerance)) continue;
+    const float a = u.dot(p), b = v.dot(p);
+    behind += a >= u0 && a <= u1 && b >= v0 && b <= v1;
+  }
+  return behind;
+}
+
 }  // namespace
 
 std::vector<char> largePlanes(const Points& points, const Points& normals, float density, const PlaneParams& params,
@@ -279,9 +299,8 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
     }
     if (inliers.size() < min_count) break;  // the largest plane left is too small: done
     for (const auto i : inliers) tried[i] = 1;  // small patches of it stay in the scene, and are not tried again
-    std::size_t behind = 0;
-    for (const Vec3& p : points) behind += best.normal.dot(p) - best.d < -3.0f * params.tolerance;
-    if (static_cast<float>(behind) > params.max_behind * static_cast<float>(points.size())) continue;  // not background
+    if (static_cast<float>(pointsBehind(points, inliers, best, params.tolerance)) > params.max_behind * static_cast<float>(points.size()))
+      continue;  // not background
     // The farthest surface, the bin's floor or a table: background for verification even where
     // what the parts leave of it is in pieces each smaller than min_count (those stay in the votes).
     Background* b = &background.emplace_back(Background{best, inliers});
