@@ -85,6 +85,35 @@ bool parseNumber(std::string_view token, double& value) {
   return ec == std::errc() && end == token.data() + token.size();
 }
 
+std::size_t jsonDepth(std::string_view text) {
+  std::size_t depth = 0, deepest = 0;
+  bool in_string = false, escaped = false;
+  for (const char c : text) {
+    if (in_string) {
+      if (escaped) escaped = false;
+      else if (c == '\\') escaped = true;
+      else if (c == '"') in_string = false;
+    } else if (c == '"') {
+      in_string = true;
+    } else if (c == '{' || c == '[') {
+      deepest = std::max(deepest, ++depth);
+    } else if ((c == '}' || c == ']') && depth > 0) {
+      --depth;
+    }
+  }
+  return deepest;
+}
+
+std::size_t parseCount(const std::string& path, std::string_view token, const char* what, std::size_t max) {
+  std::uint64_t v = 0;
+  if (!token.empty() && token.front() == '+') token.remove_prefix(1);
+  const auto [end, ec] = std::from_chars(token.data(), token.data() + token.size(), v);
+  if (ec != std::errc() || end != token.data() + token.size())
+    fail(path, fmt::format("{} '{}' is not a whole number", what, token));
+  if (v > max) fail(path, fmt::format("{} {} is more than this reader allows ({})", what, v, max));
+  return static_cast<std::size_t>(v);
+}
+
 int scalarSize(Scalar type) {
   switch (type) {
     case Scalar::Int8: case Scalar::UInt8: return 1;

@@ -19,6 +19,15 @@ double number(const std::string& path, const json& j, const char* key) {
   return j[key].get<double>();
 }
 
+/// The most pixels along an image side a camera file may claim.
+constexpr double kMostImageSide = 65535;
+
+int imageSide(const std::string& path, double v, const char* what) {
+  if (!(v >= 1 && v <= kMostImageSide) || v != std::floor(v))
+    fail(path, fmt::format("image {} must be a whole number in [1, {}], got {}", what, kMostImageSide, v));
+  return static_cast<int>(v);
+}
+
 void validate(const std::string& path, const Intrinsics& k) {
   if (!(k.fx > 0) || !(k.fy > 0) || !std::isfinite(k.fx) || !std::isfinite(k.fy))
     fail(path, fmt::format("focal lengths must be positive (fx={}, fy={})", k.fx, k.fy));
@@ -27,19 +36,73 @@ void validate(const std::string& path, const Intrinsics& k) {
     fail(path, fmt::format("depth_scale must be positive, got {}", k.depth_scale));
 }
 
+/// The most pixels a depth image may have (a 12-megapixel sensor has a fifth of this).
+constexpr std::size_t kMostPixels = std::size_t{1} << 26;
+/// Deflate expands at most about 1032 times: a header claiming more pixels than the data can
+/// hold is refused before they are allocated.
+constexpr std::size_t kMostDeflateRatio = 1032;
+/// A gAMA chunk's value for gamma 1 (linear): the only gamma under which libpng leaves the values.
+constexpr std::uint32_t kLinearGamma = 100000;
+
+std::uint32_t bigEndian32(const char* p) {
+  const auto* b = reinterpret_cast<const unsigned char*>(p);
+  return std::uint32_t{b[0]} << 24 | std::uint32_t{b[1]} << 16 | std::uint32_t{b[2]} << 8 | std::uint32_t{b[3]};
+}
+
+/// Walks the PNG's chunks: a 16-bit grey image without alpha (IHDR), no chunk under which
+/// libpng would change the stored values (a gamma other than 1, sRGB, an ICC profile,
+/// transparency; chromaticities do not touch grey), and a size the
+/// image data can hold. The image's width and height.
+std::pair<int, int> checkDepthPng(const std::string& path, const std::string& bytes) {
+  static constexpr char kSignature[] = "\x89PNG\r\n\x1a\n";
+  if (bytes.size() < 8 || bytes.compare(0, 8, kSignature, 8) != 0) fail(path, "not a PNG file");
+  std::size_t pos = 8, image_data = 0;
+  std::uint32_t width = 0, height = 0;
+  while (pos + 12 <= bytes.size()) {
+    const std::size_t length = bigEndian32(bytes.data() + pos);
+    const std::string type = bytes.substr(pos + 4, 4);
+    if (length > bytes.size() - pos - 12) fail(path, fmt::format("PNG is truncated (in its {} chunk)", type));
+    const char* data = bytes.data() + pos + 8;
+    if (type == "IHDR") {
+      if (length < 13) fail(path, "PNG header chunk is too short");
+      width = bigEndian32(data);
+      height = bigEndian32(data + 4);
+      if (data[8] != 16 || data[9] != 0) fail(path, "depth PNG must be 16-bit grayscale without alpha");
+    } else if (type == "gAMA" && length >= 4 && bigEndian32(data) == kLinearGamma) {
+      // gamma 1: linear, the values as stored (libpng's own linear output writes this)
+    } else if (type == "gAMA" || type == "sRGB" || type == "iCCP" || type == "tRNS") {
+      fail(path, fmt::format("depth PNG has a {} chunk, under which the stored depth would be changed on reading", type));
+    } else if (type == "IDAT") {
+      image_data += length;
+    }
+    pos += length + 12;
+    if (type == "IEND") break;
+  }
+  if (width == 0 || height == 0) fail(path, "PNG has no image header or an empty image");
+  const std::size_t pixels = std::size_t{width} * height;
+  if (width > 65535 || height > 65535 || pixels > kMostPixels)
+    fail(path, fmt::format("depth image of {} x {} pixels is larger than this reader allows", width, height));
+  if (2 * pixels > kMostDeflateRatio * image_data + 1024)
+    fail(path, fmt::format("PNG is truncated ({} bytes of image data for {} x {} pixels)", image_data, width, height));
+  return {static_cast<int>(width), static_cast<int>(height)};
+}
+
 }  // namespace
 
 Intrinsics readIntrinsics(const std::string& path, const std::string& image_id) {
   const std::string text = detail::readFileBytes(path);
-  json j = json::parse(text, nullptr, /*allow_exceptions=*/false);
-  if (j.is_discarded() || !j.is_object()) fail(path, "not a JSON object");
-  Intrinsics k;
-  if (!j.contains("fx") && !j.contains("cam_K")) {  // scene_camera.json: {"<id>": {...}, ...}
-    if (j.empty()) fail(path, "no camera entries");
-    if (!image_id.empty() && !j.contains(image_id)) fail(path, fmt::format("no entry for image '{}'", image_id));
-    j = image_id.empty() ? j.begin().value() : j[image_id];
-    if (!j.is_object()) fail(path, "camera entry is not an object");
+  if (detail::jsonDepth(text) > detail::kMostJsonDepth) fail(path, "JSON nested too deeply to be a camera file");
+  const json file = json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (file.is_discarded() || !file.is_object()) fail(path, "not a JSON object");
+  const json* entry = &file;
+  if (!file.contains("fx") && !file.contains("cam_K")) {  // scene_camera.json: {"<id>": {...}, ...}
+    if (file.empty()) fail(path, "no camera entries");
+    if (!image_id.empty() && !file.contains(image_id)) fail(path, fmt::format("no entry for image '{}'", image_id));
+    entry = image_id.empty() ? &file.begin().value() : &file.at(image_id);
+    if (!entry->is_object()) fail(path, "camera entry is not an object");
   }
+  const json& j = *entry;
+  Intrinsics k;
   if (j.contains("cam_K")) {
     const json& K = j["cam_K"];
     if (!K.is_array() || K.size() != 9) fail(path, "cam_K must hold 9 numbers");
@@ -51,8 +114,8 @@ Intrinsics readIntrinsics(const std::string& path, const std::string& image_id) 
     k.cx = number(path, j, "cx"); k.cy = number(path, j, "cy");
   }
   k.depth_scale = j.contains("depth_scale") ? number(path, j, "depth_scale") : 1.0;
-  if (j.contains("width")) k.width = static_cast<int>(number(path, j, "width"));
-  if (j.contains("height")) k.height = static_cast<int>(number(path, j, "height"));
+  if (j.contains("width")) k.width = imageSide(path, number(path, j, "width"), "width");
+  if (j.contains("height")) k.height = imageSide(path, number(path, j, "height"), "height");
   validate(path, k);
   return k;
 }
@@ -79,6 +142,7 @@ PointCloud depthToCloud(const std::vector<std::uint16_t>& depth, int width, int 
 PointCloud readDepthPng(const std::string& path, const Intrinsics& k) {
   validate(path, k);
   const std::string bytes = detail::readFileBytes(path);
+  checkDepthPng(path, bytes);  // before libpng reads or anything is allocated
   png_image image{};
   image.version = PNG_IMAGE_VERSION;
   if (!png_image_begin_read_from_memory(&image, bytes.data(), bytes.size()))

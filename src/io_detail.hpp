@@ -30,6 +30,25 @@ std::vector<std::string_view> splitWords(std::string_view line);
 /// Parses a whole token as a number; false when it is not one.
 bool parseNumber(std::string_view token, double& value);
 
+/// a * b, or an error naming `what` when the product does not fit in size_t: a size computed
+/// from a file's header must not wrap around.
+inline std::size_t checkedMul(std::size_t a, std::size_t b, const std::string& path, const char* what) {
+  std::size_t product = 0;
+  if (__builtin_mul_overflow(a, b, &product)) fail(path, fmt::format("{} overflows ({} x {})", what, a, b));
+  return product;
+}
+
+/// A whole non-negative integer count of at most `max` from a header token (not 1e30, inf, NaN
+/// or 2.5), else an error naming `what`.
+std::size_t parseCount(const std::string& path, std::string_view token, const char* what, std::size_t max);
+
+/// The deepest nesting of objects and arrays in a JSON text (brackets inside strings do not
+/// count), found without parsing: a crafted file nested 100 000 deep must be refused before a
+/// parser or a copy recurses through it.
+std::size_t jsonDepth(std::string_view text);
+/// The nesting JSON readers accept.
+constexpr std::size_t kMostJsonDepth = 64;
+
 /// Scalar types of PLY and PCD.
 enum class Scalar { Int8, UInt8, Int16, UInt16, Int32, UInt32, Float32, Float64 };
 int scalarSize(Scalar type);

@@ -45,11 +45,13 @@ Scalar pcdScalar(const std::string& path, char type, int size) {
   fail(path, fmt::format("unsupported PCD field type {}{}", type, size));
 }
 
-std::size_t parseCount(const std::string& path, std::string_view word, const char* what) {
-  double v = -1;
-  if (!detail::parseNumber(word, v) || v < 0 || v != std::floor(v) || v > 1e10)
-    fail(path, fmt::format("bad {} '{}' in PCD header", what, word));
-  return static_cast<std::size_t>(v);
+/// The most points, and the most values of one field, a PCD header may claim: beyond what a
+/// sensor gives, and the body is checked against the claim before anything is allocated.
+constexpr std::size_t kMostPoints = (std::size_t{1} << 31) - 1;
+constexpr std::size_t kMostCount = std::size_t{1} << 16;
+
+std::size_t parseCount(const std::string& path, std::string_view word, const char* what, std::size_t most = kMostPoints) {
+  return detail::parseCount(path, word, fmt::format("PCD {}", what).c_str(), most);
 }
 
 void checkFieldList(const std::string& path, const PcdHeader& h, std::size_t n, const char* key) {
@@ -71,13 +73,13 @@ PcdHeader parseHeader(const std::string& path, const std::string& bytes) {
       for (std::size_t i = 1; i < w.size(); ++i) h.fields.push_back({std::string(w[i])});
     } else if (w[0] == "SIZE") {
       checkFieldList(path, h, w.size() - 1, "SIZE");
-      for (std::size_t i = 1; i < w.size(); ++i) h.fields[i - 1].size = int(parseCount(path, w[i], "SIZE"));
+      for (std::size_t i = 1; i < w.size(); ++i) h.fields[i - 1].size = int(parseCount(path, w[i], "SIZE", 8));
     } else if (w[0] == "TYPE") {
       checkFieldList(path, h, w.size() - 1, "TYPE");
       for (std::size_t i = 1; i < w.size(); ++i) h.fields[i - 1].type = w[i].empty() ? '?' : w[i][0];
     } else if (w[0] == "COUNT") {
       checkFieldList(path, h, w.size() - 1, "COUNT");
-      for (std::size_t i = 1; i < w.size(); ++i) h.fields[i - 1].count = int(parseCount(path, w[i], "COUNT"));
+      for (std::size_t i = 1; i < w.size(); ++i) h.fields[i - 1].count = int(parseCount(path, w[i], "COUNT", kMostCount));
     } else if (w[0] == "WIDTH" && w.size() == 2) {
       h.width = parseCount(path, w[1], "WIDTH");
       have_width = true;
@@ -104,14 +106,16 @@ PcdHeader parseHeader(const std::string& path, const std::string& bytes) {
   }
   if (h.fields.empty()) fail(path, "PCD header has no FIELDS");
   if (!have_width) fail(path, "PCD header has no WIDTH");
-  if (!have_points) h.points = h.width * h.height;
-  if (h.points != h.width * h.height)
-    fail(path, fmt::format("PCD POINTS {} != WIDTH*HEIGHT {}", h.points, h.width * h.height));
+  const std::size_t pixels = detail::checkedMul(h.width, h.height, path, "PCD WIDTH x HEIGHT");
+  if (!have_points) h.points = pixels;
+  if (h.points != pixels) fail(path, fmt::format("PCD POINTS {} != WIDTH*HEIGHT {}", h.points, pixels));
+  if (h.points > kMostPoints) fail(path, fmt::format("PCD POINTS {} is more than this reader allows", h.points));
   for (Field& f : h.fields) {
     if (f.count < 1) fail(path, fmt::format("PCD field '{}' has COUNT {}", f.name, f.count));
     f.scalar = pcdScalar(path, f.type, f.size);
     f.offset = h.point_size;
-    h.point_size += static_cast<std::size_t>(f.size) * static_cast<std::size_t>(f.count);
+    h.point_size += static_cast<std::size_t>(f.size) * static_cast<std::size_t>(f.count);  // at most 8 x 2^16 a field
+    if (h.point_size > (std::size_t{1} << 30)) fail(path, "PCD point record too large");
   }
   h.body_offset = pos;
   return h;
@@ -123,13 +127,43 @@ int fieldIndex(const PcdHeader& h, const char* name) {
   return -1;
 }
 
+/// LZF expands at most this many times (a 3-byte back-reference gives at most 264 bytes).
+constexpr std::size_t kMostLzfRatio = 88;
+
+/// The body is as long as the header says, before anything is allocated: binary, n records;
+/// ascii, at least two bytes a value; binary_compressed, a block whose raw size is n records and
+/// which the data can hold.
+void checkBodyLength(const std::string& path, const PcdHeader& h, std::size_t n, const char* body, std::size_t body_size) {
+  const std::size_t record_bytes = detail::checkedMul(n, h.point_size, path, "PCD data size");
+  if (h.encoding == Encoding::Binary) {
+    if (body_size < record_bytes)
+      fail(path, fmt::format("file is truncated ({} bytes of data for {} points of {} bytes)", body_size, n, h.point_size));
+  } else if (h.encoding == Encoding::Ascii) {
+    std::size_t values = 0;
+    for (const Field& f : h.fields) values += static_cast<std::size_t>(f.count);
+    if (detail::checkedMul(n, values, path, "PCD value count") > body_size / 2 + 1)
+      fail(path, fmt::format("file is truncated ({} bytes of text for {} points)", body_size, n));
+  } else {
+    if (body_size < 8) fail(path, "file is truncated (no compressed block header)");
+    const auto compressed = static_cast<std::size_t>(detail::readScalar(body, Scalar::UInt32, false));
+    const auto raw_size = static_cast<std::size_t>(detail::readScalar(body + 4, Scalar::UInt32, false));
+    if (raw_size != record_bytes)
+      fail(path, fmt::format("compressed block holds {} bytes, header implies {}", raw_size, record_bytes));
+    if (compressed > body_size - 8)
+      fail(path, fmt::format("file is truncated ({} of {} compressed bytes)", body_size - 8, compressed));
+    if (raw_size > kMostLzfRatio * compressed + 8)
+      fail(path, fmt::format("corrupt binary_compressed PCD ({} compressed bytes cannot hold {})", compressed, raw_size));
+  }
+}
+
 /// All values of the wanted fields (x,y,z[,nx,ny,nz]) per point, as doubles.
 std::vector<double> decodeBody(const std::string& path, const std::string& bytes, const PcdHeader& h,
                                const std::vector<int>& wanted) {
   const std::size_t n = h.points, m = wanted.size();
-  std::vector<double> values(n * m);
   const char* body = bytes.data() + h.body_offset;
   const std::size_t body_size = bytes.size() - h.body_offset;
+  checkBodyLength(path, h, n, body, body_size);  // before anything sized by the header is allocated
+  std::vector<double> values(n * m);
   if (h.encoding == Encoding::Ascii) {
     std::vector<std::string_view> tokens;
     std::size_t pos = h.body_offset;
@@ -157,8 +191,6 @@ std::vector<double> decodeBody(const std::string& path, const std::string& bytes
     return values;
   }
   if (h.encoding == Encoding::Binary) {
-    if (body_size < n * h.point_size)
-      fail(path, fmt::format("file is truncated ({} bytes of data for {} points of {} bytes)", body_size, n, h.point_size));
     for (std::size_t p = 0; p < n; ++p)
       for (std::size_t k = 0; k < m; ++k) {
         const Field& f = h.fields[wanted[k]];
@@ -167,13 +199,8 @@ std::vector<double> decodeBody(const std::string& path, const std::string& bytes
     return values;
   }
   // binary_compressed: u32 compressed size, u32 raw size, LZF data; raw layout is one array per field.
-  if (body_size < 8) fail(path, "file is truncated (no compressed block header)");
   const auto compressed = static_cast<std::size_t>(detail::readScalar(body, Scalar::UInt32, false));
   const auto raw_size = static_cast<std::size_t>(detail::readScalar(body + 4, Scalar::UInt32, false));
-  if (raw_size != n * h.point_size)
-    fail(path, fmt::format("compressed block holds {} bytes, header implies {}", raw_size, n * h.point_size));
-  if (compressed > body_size - 8)
-    fail(path, fmt::format("file is truncated ({} of {} compressed bytes)", body_size - 8, compressed));
   std::vector<char> raw(raw_size);
   if (raw_size > 0) {
     const unsigned out = lzf_decompress(body + 8, static_cast<unsigned>(compressed), raw.data(),

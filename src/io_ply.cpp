@@ -51,6 +51,26 @@ Scalar requireScalar(const std::string& path, std::string_view name) {
   return *type;
 }
 
+/// The most elements of one kind a PLY header may claim (the body is checked against the
+/// claim before anything is allocated).
+constexpr std::size_t kMostElements = (std::size_t{1} << 31) - 1;
+/// The longest list a PLY element may hold.
+constexpr double kMostListLength = 1e6;
+
+/// The body holds at least what the header claims: per element its fixed scalars and list
+/// counts (binary), or two bytes a value (ascii).
+void checkBodyLength(const std::string& path, const Header& header, std::size_t body_size) {
+  std::size_t least = 0;
+  for (const Element& e : header.elements) {
+    std::size_t per = 0;
+    for (const Property& p : e.properties)
+      per += header.format == PlyFormat::Ascii ? 2 : static_cast<std::size_t>(detail::scalarSize(p.is_list ? p.count_type : p.type));
+    least += detail::checkedMul(e.count, per, path, "PLY data size");
+    if (least > body_size + 1)
+      fail(path, fmt::format("file is truncated ({} bytes of data, the header needs at least {})", body_size, least));
+  }
+}
+
 Header parseHeader(const std::string& path, const std::string& bytes) {
   if (bytes.compare(0, 3, "ply") != 0 || bytes.size() < 4 || (bytes[3] != '\n' && bytes[3] != '\r'))
     fail(path, "not a PLY file (first line is not 'ply')");
@@ -73,10 +93,11 @@ Header parseHeader(const std::string& path, const std::string& bytes) {
       else fail(path, fmt::format("unknown PLY format '{}'", words[1]));
       have_format = true;
     } else if (words[0] == "element") {
-      double count = -1;
-      if (words.size() != 3 || !detail::parseNumber(words[2], count) || count < 0 || count != std::floor(count))
-        fail(path, fmt::format("malformed PLY element line '{}'", line));
-      header.elements.push_back({std::string(words[1]), static_cast<std::size_t>(count), {}});
+      if (words.size() != 3) fail(path, fmt::format("malformed PLY element line '{}'", line));
+      for (const Element& e : header.elements)
+        if (e.name == words[1] && (e.name == "vertex" || e.name == "face"))
+          fail(path, fmt::format("PLY file has two '{}' elements", e.name));
+      header.elements.push_back({std::string(words[1]), detail::parseCount(path, words[2], "PLY element count", kMostElements), {}});
     } else if (words[0] == "property") {
       if (header.elements.empty()) fail(path, "PLY property before any element");
       Property prop;
@@ -98,6 +119,7 @@ Header parseHeader(const std::string& path, const std::string& bytes) {
   }
   if (!have_format) fail(path, "PLY header has no 'format' line");
   header.body_offset = pos;
+  checkBodyLength(path, header, bytes.size() - pos);
   return header;
 }
 
@@ -106,6 +128,13 @@ class BodyReader {
  public:
   BodyReader(const std::string& path, const std::string& bytes, const Header& header)
       : path_(path), bytes_(bytes), pos_(header.body_offset), format_(header.format) {}
+
+  /// Next value as a list's length: a whole number in [0, kMostListLength], else an error.
+  std::size_t listLength(Scalar type, const char* what) {
+    const double n = next(type, what);
+    if (!(n >= 0 && n <= kMostListLength) || n != std::floor(n)) fail(path_, fmt::format("invalid list length {} in {}", n, what));
+    return static_cast<std::size_t>(n);
+  }
 
   /// Next value as double; `what` names the value for the truncation message.
   double next(Scalar type, const char* what) {
@@ -165,8 +194,8 @@ void readVertices(const std::string& path, const Element& e, BodyReader& body, d
     for (std::size_t p = 0; p < e.properties.size(); ++p) {
       const Property& prop = e.properties[p];
       if (prop.is_list) {
-        const auto n = static_cast<long long>(body.next(prop.count_type, "a vertex list"));
-        for (long long k = 0; k < n; ++k) body.next(prop.type, "a vertex list");
+        const std::size_t n = body.listLength(prop.count_type, "a vertex list");
+        for (std::size_t k = 0; k < n; ++k) body.next(prop.type, "a vertex list");
       } else {
         row[p] = body.next(prop.type, "the vertex data");
       }
@@ -187,17 +216,16 @@ void readFaces(const std::string& path, const Element& e, BodyReader& body, PlyD
       list = static_cast<int>(i);
   if (list < 0) fail(path, "PLY face element has no vertex_indices list");
   out.has_faces = true;
-  out.faces.reserve(e.count);
+  out.faces.reserve(std::min<std::size_t>(e.count, std::size_t{1} << 20));  // grows with the data actually read
   const auto n_vertices = static_cast<double>(out.points.size());
   std::vector<int> polygon;
   for (std::size_t f = 0; f < e.count; ++f) {
     for (std::size_t p = 0; p < e.properties.size(); ++p) {
       const Property& prop = e.properties[p];
       if (!prop.is_list) { body.next(prop.type, "the face data"); continue; }
-      const double n = body.next(prop.count_type, "the face data");
-      if (n < 0 || n > 1e6) fail(path, fmt::format("face {} has an invalid vertex count {}", f, n));
+      const std::size_t n = body.listLength(prop.count_type, "the face data");
       polygon.clear();
-      for (int k = 0; k < static_cast<int>(n); ++k) {
+      for (std::size_t k = 0; k < n; ++k) {
         const double idx = body.next(prop.type, "the face data");
         if (static_cast<int>(p) == list && (idx < 0 || idx >= n_vertices || idx != std::floor(idx)))
           fail(path, fmt::format("face {} refers to vertex {} of {}", f, idx, out.points.size()));
@@ -225,9 +253,8 @@ PlyData readPly(const std::string& path, double scale) {
     } else {  // any other element: read past it
       for (std::size_t i = 0; i < e.count; ++i)
         for (const Property& prop : e.properties) {
-          const double n = prop.is_list ? body.next(prop.count_type, e.name.c_str()) : 1.0;
-          if (n < 0 || n > 1e6) fail(path, fmt::format("invalid list length {} in element '{}'", n, e.name));
-          for (int k = 0; k < static_cast<int>(n); ++k) body.next(prop.type, e.name.c_str());
+          const std::size_t n = prop.is_list ? body.listLength(prop.count_type, e.name.c_str()) : 1;
+          for (std::size_t k = 0; k < n; ++k) body.next(prop.type, e.name.c_str());
         }
     }
   }

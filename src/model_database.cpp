@@ -254,6 +254,23 @@ bool ModelDatabase::isDatabaseFile(const std::string& path) {
   return in.read(magic, sizeof magic) && std::equal(magic, magic + sizeof magic, kMagic);
 }
 
+namespace {
+
+/// A loaded model as training makes one: finite points, unit normals, a positive finite
+/// diameter and sample radius (a checksum guards against damage, not against a crafted file).
+void checkModel(const std::string& path, const OrientedModel& model) {
+  if (!(model.diameter > 0) || !std::isfinite(model.diameter) || !(model.sample_radius > 0) ||
+      !std::isfinite(model.sample_radius) || model.sample_radius > model.diameter)
+    detail::fail(path, fmt::format("database has an invalid diameter {} or sample radius {}", model.diameter, model.sample_radius));
+  for (std::size_t i = 0; i < model.points.size(); ++i) {
+    if (!model.points[i].allFinite()) detail::fail(path, fmt::format("database model point {} is not finite", i));
+    if (!model.normals[i].allFinite() || std::abs(model.normals[i].norm() - 1.0f) > 1e-3f)
+      detail::fail(path, fmt::format("database model normal {} is not a unit vector", i));
+  }
+}
+
+}  // namespace
+
 ModelDatabase ModelDatabase::load(const std::string& path) {
   const std::string bytes = detail::readFileBytes(path);
   if (bytes.size() < sizeof kMagic + 8 || bytes.compare(0, sizeof kMagic, kMagic, sizeof kMagic) != 0)
@@ -306,6 +323,7 @@ ModelDatabase ModelDatabase::load(const std::string& path) {
     detail::fail(path, "database offsets are inconsistent");
   if (std::any_of(db.entries_.begin(), db.entries_.end(), [&](PointId id) { return id >= n_points; }))
     detail::fail(path, "database refers to a model point that does not exist");
+  checkModel(path, db.model_);
   db.indexDenseLists();
   return db;
 }

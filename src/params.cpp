@@ -3,6 +3,9 @@
 
 #include <binpose/model.hpp>
 
+#include "io_detail.hpp"
+
+#include <algorithm>
 #include <cmath>
 #include <fmt/format.h>
 #include <fstream>
@@ -103,6 +106,8 @@ void validate(const DetectionParams& p) {
 }
 
 void applyJson(DetectionParams& params, const std::string& json_text, const std::string& source) {
+  if (detail::jsonDepth(json_text) > detail::kMostJsonDepth)  // refused before the parser recurses
+    throw Error(fmt::format("{}: JSON nested too deeply to be a parameter file", source));
   json j = json::parse(json_text, nullptr, false);
   if (j.is_discarded() || !j.is_object()) throw Error(fmt::format("{}: not a JSON object", source));
   json known;
