@@ -1,6 +1,7 @@
 // Exact maximum clique by bitset branch and bound (thesis 4.5 used a heuristic).
 #include <binpose/clique.hpp>
 
+#include "graph_workspace.hpp"
 #include "simd.hpp"
 
 #include <algorithm>
@@ -9,8 +10,8 @@
 #include <bit>
 #include <cstring>
 #include <deque>
+#include <optional>
 #include <tbb/blocked_range.h>
-#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 namespace binpose {
@@ -264,6 +265,11 @@ void relabelled(const Graph& g, const std::vector<int>& order, Graph& sorted, st
     std::copy_n(xt.begin() + static_cast<std::ptrdiff_t>(order[a]) * yw, yw, sorted.mutableRow(a));
 }
 
+/// A row's bands of squared model distances, one per column.
+struct Bands {
+  std::vector<float> low2, high2;
+};
+
 }  // namespace
 
 void transposeBits64(std::array<std::uint64_t, 64>& a, bool simd) {
@@ -372,7 +378,15 @@ CliqueResult maximumClique(const Graph& g, std::uint64_t work_limit, CliqueWorks
   return r;
 }
 
-Graph consistencyGraph(std::span<const Correspondence> cps, const Points& scene, const Points& model, float e_gmax) {
+GraphWorkspace::GraphWorkspace() : impl_(std::make_unique<Impl>()) {}
+GraphWorkspace::~GraphWorkspace() = default;
+GraphWorkspace::GraphWorkspace(GraphWorkspace&&) noexcept = default;
+GraphWorkspace& GraphWorkspace::operator=(GraphWorkspace&&) noexcept = default;
+
+Graph consistencyGraph(std::span<const Correspondence> cps, const Points& scene, const Points& model, float e_gmax,
+                       GraphWorkspace* workspace) {
+  std::optional<GraphWorkspace> own;  // made only for a caller without one
+  GraphWorkspace& ws = workspace != nullptr ? *workspace : own.emplace();
   const int n = static_cast<int>(cps.size());
   Graph g(n);
   // Pairs of one scene point come in runs (a point's candidates): the scene distance, and with
@@ -391,13 +405,13 @@ Graph consistencyGraph(std::span<const Correspondence> cps, const Points& scene,
     for (int k = 0; k < 3; ++k) c[k][i] = model[cps[i].model][k];
   const std::array<const float*, 3> coords{c[0].data(), c[1].data(), c[2].data()};
   const int runs = static_cast<int>(run_start.size()) - 1;
-  struct Bands {
-    std::vector<float> low2, high2;
-  };
-  tbb::enumerable_thread_specific<Bands> bands([&] { return Bands{std::vector<float>(cps.size()), std::vector<float>(cps.size())}; });
   tbb::parallel_for(tbb::blocked_range<int>(0, runs, 4), [&](const tbb::blocked_range<int>& range) {  // runs apart
     // The thread's bands, one per column (every value read is written first).
-    auto& [low2, high2] = bands.local();
+    auto& [low2, high2] = ws.impl().local<Bands>();
+    if (low2.size() < cps.size()) {
+      low2.resize(cps.size());
+      high2.resize(cps.size());
+    }
     for (int r = range.begin(); r < range.end(); ++r) {
       const int first_row = run_start[r];
       const Vec3& s = scene[cps[first_row].scene];

@@ -2,6 +2,8 @@
 // and the pose of a clique of class members.
 #include <binpose/cyclic_symmetry.hpp>
 
+#include "graph_workspace.hpp"
+
 #include <binpose/kdtree.hpp>
 
 #include <algorithm>
@@ -9,8 +11,8 @@
 #include <cmath>
 #include <bit>
 #include <limits>
+#include <optional>
 #include <tbb/blocked_range.h>
-#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 namespace binpose {
@@ -147,8 +149,8 @@ void keepScreened(const float* __restrict c, int n, int begin, int end, const fl
   kept.count = m;
 }
 
-/// A row's buffers for n candidates, one set per thread of a graph's rows (every value read is
-/// written first).
+/// A row's buffers for n candidates, one set per thread, kept in the caller's GraphWorkspace
+/// from graph to graph (every value read is written first).
 struct RowScratch {
   std::vector<float> dot, cross, z;
   std::vector<std::uint32_t> turns;
@@ -266,7 +268,10 @@ Orbits makeCyclicClasses(const ModelDatabase& db, const CyclicSymmetry& sym) {
 }
 
 Graph cyclicConsistencyGraph(std::span<const Correspondence> cps, const Points& scene, const Points& scene_normals,
-                             const OrientedModel& model, const CyclicSymmetry& sym, float e_gmax, float max_angle_deg) {
+                             const OrientedModel& model, const CyclicSymmetry& sym, float e_gmax, float max_angle_deg,
+                             GraphWorkspace* workspace) {
+  std::optional<GraphWorkspace> own;  // made only for a caller without one
+  GraphWorkspace& ws = workspace != nullptr ? *workspace : own.emplace();
   const int n = static_cast<int>(cps.size());
   Graph g(n);
   const CandidateColumns c(cps, scene, scene_normals, model, AxisFrame(sym.axis));
@@ -289,9 +294,8 @@ Graph cyclicConsistencyGraph(std::span<const Correspondence> cps, const Points& 
   // Row i's partners j > i into row i alone (rows apart on the cores), mirrored after (mirrorUpper):
   // screened, then the turns of the right distance found, both on SIMD lanes; the three angles
   // are tested only at those turns (1.8 a pair on average of IPD obj 8's 17, where any).
-  tbb::enumerable_thread_specific<RowScratch> scratches;  // one set per thread of this call
   tbb::parallel_for(tbb::blocked_range<int>(0, n, 16), [&](const tbb::blocked_range<int>& rows) {
-    RowScratch& scratch = scratches.local();
+    RowScratch& scratch = ws.impl().local<RowScratch>();
     scratch.fit(cps.size());
     auto& [dot, cross, z, turns, t_lo, t_hi, nn_scene, ni_d, nj_d, slack, kept] = scratch;
     for (int i = rows.begin(); i < rows.end(); ++i) {

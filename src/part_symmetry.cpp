@@ -29,16 +29,16 @@ int PartSymmetry::candidatesPerPoint(const StageSettings& p) const {
 }
 
 Graph PartSymmetry::consistencyGraph(std::span<const Correspondence> cps, const Points& scene, const Points& scene_normals,
-                                     const OrientedModel& model, const StageSettings& p) const {
+                                     const OrientedModel& model, const StageSettings& p, GraphWorkspace& workspace) const {
   switch (kind_) {
     case Kind::Revolution:
       return revolutionConsistencyGraph(cps, scene, scene_normals, *orbits_, p.e_gmax, p.revolution_angle_tolerance);
     case Kind::Cyclic:
-      return cyclicConsistencyGraph(cps, scene, scene_normals, model, *cyclic_, p.e_gmax, p.revolution_angle_tolerance);
+      return cyclicConsistencyGraph(cps, scene, scene_normals, model, *cyclic_, p.e_gmax, p.revolution_angle_tolerance, &workspace);
     case Kind::None:
       break;
   }
-  return binpose::consistencyGraph(cps, scene, model.points, p.e_gmax);
+  return binpose::consistencyGraph(cps, scene, model.points, p.e_gmax, &workspace);
 }
 
 std::vector<PoseFit> PartSymmetry::solve(std::span<const Correspondence> clique, const Points& scene,

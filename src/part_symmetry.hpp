@@ -21,6 +21,7 @@ namespace binpose {
 struct CliqueBuffers {
   Points model, scene, scene_normals;
   std::vector<std::uint32_t> model_ids;
+  GraphWorkspace graph;      ///< the consistency graphs' rows'
   CliqueWorkspace clique;    ///< maximumClique's
   CyclicPoseBuffers cyclic;  ///< solveCyclicPose's
   std::vector<double> pose;  ///< solvePose's
@@ -45,7 +46,7 @@ class PartSymmetry {
   [[nodiscard]] int candidatesPerPoint(const StageSettings& p) const;
   /// The consistency graph of 4.5 (eq. 13-16), or its symmetric form.
   [[nodiscard]] Graph consistencyGraph(std::span<const Correspondence> cps, const Points& scene, const Points& scene_normals,
-                                       const OrientedModel& model, const StageSettings& p) const;
+                                       const OrientedModel& model, const StageSettings& p, GraphWorkspace& workspace) const;
   /// The closed-form poses of a clique's pairs (4.6), best first: one, or for a body of
   /// revolution both axis signs where the normals leave it open. None when there is no pose.
   [[nodiscard]] std::vector<PoseFit> solve(std::span<const Correspondence> clique, const Points& scene,

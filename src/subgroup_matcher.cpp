@@ -88,7 +88,7 @@ bool Matcher::collectVotes(Slot& s, bool all_voters, ParallelVoter* parallel) co
 
 bool Matcher::match(Slot& s) const {
   if (s.candidates.size() < static_cast<std::size_t>(p.C_n)) return false;
-  Graph graph = symmetry.consistencyGraph(s.candidates, scene.points, scene.normals, db.model(), p);
+  Graph graph = symmetry.consistencyGraph(s.candidates, scene.points, scene.normals, db.model(), p, s.buffers.graph);
   for (int retry = 0;; ++retry) {
     const CliqueResult clique = maximumClique(graph, p.clique_work_limit, s.buffers.clique);
     if (retry == 0) s.outcome.largest_clique = static_cast<int>(clique.vertices.size());

@@ -58,9 +58,26 @@ struct CliqueResult {
 /// relabelling work in such blocks.
 void transposeBits64(std::array<std::uint64_t, 64>& a, bool simd = true);
 
+/// The per-thread buffers of a consistency graph's rows, kept by a caller that builds many graphs
+/// (a matcher slot) so that they are made once; not shared by two graphs built at the same time.
+/// Without one, a graph builder makes its own for the call.
+class GraphWorkspace {
+ public:
+  GraphWorkspace();
+  ~GraphWorkspace();
+  GraphWorkspace(GraphWorkspace&&) noexcept;
+  GraphWorkspace& operator=(GraphWorkspace&&) noexcept;
+  struct Impl;  ///< src/graph_workspace.hpp
+  [[nodiscard]] Impl& impl() { return *impl_; }
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
 /// Geometric consistency graph (eq. 13-16): CP_i and CP_j are linked when the model and scene
 /// distances between them differ by less than e_gmax.
-Graph consistencyGraph(std::span<const Correspondence> cps, const Points& scene, const Points& model, float e_gmax);
+Graph consistencyGraph(std::span<const Correspondence> cps, const Points& scene, const Points& model, float e_gmax,
+                       GraphWorkspace* workspace = nullptr);
 
 /// A maximum clique of g. A greedy clique (grown from the highest-degree vertices) gives a
 /// lower bound L; the search then runs only on the vertices of the L-core (those keeping at

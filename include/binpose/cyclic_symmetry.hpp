@@ -50,7 +50,8 @@ Orbits makeCyclicClasses(const ModelDatabase& db, const CyclicSymmetry& sym);
 /// pair's. The distance alone, tested against n turns, linked 0.6-0.7 of the pairs of a copy's
 /// candidates.
 Graph cyclicConsistencyGraph(std::span<const Correspondence> cps, const Points& scene, const Points& scene_normals,
-                             const OrientedModel& model, const CyclicSymmetry& sym, float e_gmax, float max_angle_deg);
+                             const OrientedModel& model, const CyclicSymmetry& sym, float e_gmax, float max_angle_deg,
+                             GraphWorkspace* workspace = nullptr);
 
 /// The pose (4.6) of a clique of class members: three anchors (the first point at its own
 /// image, the scene point farthest from it, the one farthest from the line through both) each
