@@ -1,6 +1,8 @@
 // Crafted files: each is refused with one line naming the file and the problem, before anything
 // sized by its header is allocated, or read exactly.
 #include <binpose/io.hpp>
+#include <binpose/model_database.hpp>
+#include <binpose/shapes.hpp>
 #include <binpose/params.hpp>
 
 #include "test_util.hpp"
@@ -8,6 +10,8 @@
 #include <zlib.h>
 
 #include <chrono>
+#include <cmath>
+#include <cstring>
 #include <string>
 
 using namespace binpose;
@@ -156,4 +160,52 @@ TEST(HostileInput, DepthPngIsReadExactlyOrRefused) {
   large.replace(16, 8, bigEndian(60000) + bigEndian(60000));  // the header claims 60000 x 60000
   const std::string path = fileWith("large.png", large);
   EXPECT_NE(refusal([&] { (void)readDepthPng(path, camera()); }).find("larger than"), std::string::npos);
+}
+
+namespace {
+
+/// `bytes` with the first run equal to `was` replaced by `now`, and the checksum (zlib's CRC-32 of
+/// all but the last four bytes, stored last) made right again: a crafted file, not a damaged one.
+std::string recrafted(std::string bytes, const std::string& was, const std::string& now) {
+  const std::size_t at = bytes.find(was);
+  EXPECT_NE(at, std::string::npos);
+  if (at == std::string::npos) return bytes;
+  bytes.replace(at, now.size(), now);
+  const std::size_t body = bytes.size() - 4;
+  const auto crc = static_cast<std::uint32_t>(crc32(0, reinterpret_cast<const Bytef*>(bytes.data()), uInt(body)));
+  std::memcpy(bytes.data() + body, &crc, 4);
+  return bytes;
+}
+
+template <class T>
+std::string bytesOf(const T* values, std::size_t count) {
+  return {reinterpret_cast<const char*>(values), count * sizeof(T)};
+}
+
+}  // namespace
+
+// A database whose checksum is right but whose model is not one training makes (a NaN sample
+// radius, a zero normal, a NaN point) is refused on loading, not loaded to find nothing.
+TEST(HostileInput, DatabaseWithAnImpossibleModelIsRefused) {
+  ModelParams params;
+  params.num_points = 200;
+  const OrientedModel model = prepareModel(builtinPart("cap"), params);
+  const ModelDatabase db = ModelDatabase::build(model, defaultQuantization(model.diameter));
+  const std::string path = test::tempPath("crafted.bpdb");
+  db.save(path);
+  const std::string good = test::readAll(path);
+  const float nan = NAN, zeros[3] = {0, 0, 0};
+  const float radius = db.model().sample_radius;
+  const std::pair<std::string, std::string> crafted[] = {
+      {recrafted(good, bytesOf(&radius, 1), bytesOf(&nan, 1)), "sample radius"},
+      {recrafted(good, bytesOf(db.model().normals[0].data(), 3), bytesOf(zeros, 3)), "unit vector"},
+      {recrafted(good, bytesOf(db.model().points[0].data(), 3), bytesOf(&nan, 1)), "not finite"},
+  };
+  for (const auto& [bytes, why] : crafted) {
+    test::writeAll(path, bytes);
+    const std::string m = refusal([&] { (void)ModelDatabase::load(path); });
+    EXPECT_NE(m.find(why), std::string::npos) << why << ": " << m;
+  }
+  test::writeAll(path, good);
+  EXPECT_NO_THROW((void)ModelDatabase::load(path));
 }
