@@ -148,6 +148,10 @@ bool fitPlaneNormal(const Points& points, Vec3& normal) {
   return planeNormal(points.size(), [&](std::size_t j) -> const Vec3& { return points[j]; }, normal);
 }
 
+bool fitPlaneNormal(const Points& points, std::span<const std::uint32_t> which, Vec3& normal) {
+  return planeNormal(which.size(), [&](std::size_t j) -> const Vec3& { return points[which[j]]; }, normal);
+}
+
 Points estimateNormals(const Points& cloud, const Points& queries, int k, const Vec3& viewpoint) {
   if (cloud.size() < 3) return Points(queries.size(), Vec3::Zero());
   return estimateNormals(PointGrid(cloud), cloud, queries, k, viewpoint);

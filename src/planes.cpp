@@ -2,11 +2,10 @@
 #include <binpose/planes.hpp>
 
 #include <binpose/geometry.hpp>
+#include <binpose/normals.hpp>
 #include <binpose/point_grid.hpp>
 
 #include "oriented_lanes.hpp"
-
-#include <Eigen/Eigenvalues>
 
 #include <cmath>
 #include <numeric>
@@ -198,22 +197,16 @@ Plane bestHypothesis(const detail::OrientedLanes& probe_points, const std::vecto
   return best;
 }
 
-/// The least-squares plane of `inliers` (their centroid, the covariance's least eigenvector),
-/// its normal on the side of `like`'s: a hypothesis takes one point's normal, as noisy as the
-/// sensor, and a plane tilted by it leaves the far side of a floor out of tolerance.
+/// The least-squares plane of `inliers` (fitPlaneNormal, eq. 30-38, through their centroid), its
+/// normal on the side of `like`'s: a hypothesis takes one point's normal, as noisy as the sensor,
+/// and a plane tilted by it leaves the far side of a floor out of tolerance.
 Plane refitted(const Points& points, std::span<const std::uint32_t> inliers, const Plane& like) {
-  if (inliers.size() < 3) return like;
+  Vec3 n;
+  if (!fitPlaneNormal(points, inliers, n)) return like;
+  if (n.dot(like.normal) < 0) n = -n;
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (const auto i : inliers) mean += points[i].cast<double>();
   mean /= static_cast<double>(inliers.size());
-  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-  for (const auto i : inliers) {
-    const Eigen::Vector3d d = points[i].cast<double>() - mean;
-    cov += d * d.transpose();
-  }
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
-  Vec3 n = eig.eigenvectors().col(0).cast<float>();
-  if (n.dot(like.normal) < 0) n = -n;
   return {n, n.dot(mean.cast<float>())};
 }
 

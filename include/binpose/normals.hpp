@@ -14,6 +14,8 @@ namespace binpose {
 /// of the scatter matrix W = Q^T Q about the centroid. False for fewer than 3 points, a
 /// non-finite point, or a degenerate (collinear) neighbourhood.
 bool fitPlaneNormal(const Points& points, Vec3& normal);
+/// The same for the points of `points` at the indices `which`.
+bool fitPlaneNormal(const Points& points, std::span<const std::uint32_t> which, Vec3& normal);
 
 /// Normals of `queries` from their `k` nearest neighbours in `cloud` (the query itself included
 /// when it is a cloud point; thesis: k = 6 on the full scan), each oriented towards `viewpoint`.
