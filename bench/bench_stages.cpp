@@ -158,12 +158,7 @@ void BM_Planes(benchmark::State& state) {  // the bin's floor and walls found in
   const Fixture& f = fixture();
   std::size_t flat = 0;
   for (auto _ : state) {
-    PlaneParams planes;  // as the detector searches them (scan_preparation.cpp)
-    planes.min_area = f.params.plane_min_area;
-    planes.tolerance = f.params.plane_tolerance;
-    planes.link = 2.5f / std::sqrt(f.params.rho_sub);
-    planes.seed = f.params.seed;
-    const auto flags = largePlanes(f.scene.points, f.scene.normals, f.params.rho_sub, planes);
+    const auto flags = largePlanes(f.scene.points, f.scene.normals, f.params.rho_sub, planeParams(f.params));
     flat = static_cast<std::size_t>(std::count(flags.begin(), flags.end(), 1));
   }
   state.counters["points"] = static_cast<double>(f.scene.points.size());

@@ -44,9 +44,9 @@ constexpr std::size_t kMostDeflateRatio = 1032;
 /// A gAMA chunk's value for gamma 1 (linear): the only gamma under which libpng leaves the values.
 constexpr std::uint32_t kLinearGamma = 100000;
 
+/// A PNG's big-endian 32-bit field at p.
 std::uint32_t bigEndian32(const char* p) {
-  const auto* b = reinterpret_cast<const unsigned char*>(p);
-  return std::uint32_t{b[0]} << 24 | std::uint32_t{b[1]} << 16 | std::uint32_t{b[2]} << 8 | std::uint32_t{b[3]};
+  return static_cast<std::uint32_t>(detail::readScalar(p, detail::Scalar::UInt32, /*big_endian=*/true));
 }
 
 /// Walks the PNG's chunks: a 16-bit grey image without alpha (IHDR), no chunk under which

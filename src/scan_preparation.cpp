@@ -19,19 +19,6 @@ namespace {
 constexpr std::size_t kFitsPerTask = 16;
 /// The most neighbours the noise estimate asks for at once.
 constexpr std::size_t kMaxNoiseQuery = 32;
-/// Plane patches are linked over this many sample spacings (1 / sqrt(rho_sub)): neighbours on a
-/// plane are one spacing apart.
-constexpr float kPlaneLinkSpacings = 2.5f;
-
-/// The plane search for these settings: their plane_min_area and plane_tolerance, their seed.
-PlaneParams planeParams(const StageSettings& p) {
-  PlaneParams planes;
-  planes.min_area = p.plane_min_area;
-  planes.tolerance = p.plane_tolerance;
-  planes.link = kPlaneLinkSpacings / std::sqrt(p.rho_sub);
-  planes.seed = p.seed;
-  return planes;
-}
 
 /// The scene without the points of the bin's floor and walls. Normals left pending (NaN, their
 /// fits in `fits` by place among the chosen points `chosen`, of which the scene's are a part)

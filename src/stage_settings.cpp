@@ -29,6 +29,10 @@ StageSettings thesisStages() {
   return s;
 }
 
+/// Plane patches are linked over this many sample spacings: neighbours on a plane are one
+/// spacing apart.
+constexpr float kPlaneLinkSpacings = 2.5f;
+
 void positive(float v, const char* name) {
   if (!(v > 0) || !std::isfinite(v)) throw Error(fmt::format("{} must be a positive length in mm, got {}", name, v));
 }
@@ -61,6 +65,15 @@ StageSettings stageSettings(const DetectionParams& params, float model_diameter)
   s.icp_max_distance *= k;
   s.verify_tolerance *= k;
   return s;
+}
+
+PlaneParams planeParams(const StageSettings& s) {
+  PlaneParams planes;
+  planes.min_area = s.plane_min_area;
+  planes.tolerance = s.plane_tolerance;
+  planes.link = kPlaneLinkSpacings / std::sqrt(s.rho_sub);
+  planes.seed = s.seed;
+  return planes;
 }
 
 void validateStages(const StageSettings& s) {

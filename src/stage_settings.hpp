@@ -4,6 +4,7 @@
 // benchmarks inside the project may, to show what each one does. Why each is what it is:
 // docs/design.md.
 #include <binpose/params.hpp>
+#include <binpose/planes.hpp>
 #include <binpose/scene.hpp>
 
 #include <cstdint>
@@ -69,6 +70,10 @@ struct StageSettings : DetectionParams {
 /// diameter: the pipeline's internal values, their distances scaled like the user's (by
 /// diameter / 60 mm), plane_min_area resolved from the model when 0 is left to the caller.
 StageSettings stageSettings(const DetectionParams& params, float model_diameter);
+
+/// The plane search for these settings: their plane_min_area, plane_tolerance and seed,
+/// patches linked over 2.5 sample spacings (1 / sqrt(rho_sub)).
+PlaneParams planeParams(const StageSettings& s);
 
 /// validate() of the user's values, then of the internal ones (tests and benchmarks set them).
 void validateStages(const StageSettings& s);
