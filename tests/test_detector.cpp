@@ -97,23 +97,17 @@ SimulatedScene renderBenchBin(const Mesh& mesh, const float (&rows)[N][12], std:
   return renderBin(mesh, world, BinParams{}, SensorParams{}, seed);
 }
 
-/// ADD-S of `estimate` against copy `truth` (infinite for a copy a diameter away).
-float addSTo(const Pose& estimate, const Pose& truth, const EvalModel& eval) {
-  if ((estimate * eval.centroid - truth * eval.centroid).norm() > eval.diameter) return INFINITY;
-  return poseErrors(estimate, truth, eval).add_s_mm;
-}
-
 /// Every detection lies on a copy (ADD-S under the benchmark's 0.1 diameter), and whether one
 /// lies on copy `copy`.
 bool checkDetections(const DetectionResult& result, const std::vector<Pose>& truth, const EvalModel& eval, std::size_t copy) {
   const float limit = 0.1f * eval.diameter;  // the benchmark's rule
   for (const Detection& d : result.detections) {
     float nearest = INFINITY;
-    for (const Pose& t : truth) nearest = std::min(nearest, addSTo(d.pose, t, eval));
+    for (const Pose& t : truth) nearest = std::min(nearest, test::addSTo(d.pose, t, eval));
     EXPECT_LT(nearest, limit) << "a wrong detection, score " << d.score;
   }
   return std::any_of(result.detections.begin(), result.detections.end(),
-                     [&](const Detection& d) { return addSTo(d.pose, truth[copy], eval) < limit; });
+                     [&](const Detection& d) { return test::addSTo(d.pose, truth[copy], eval) < limit; });
 }
 
 /// bench/'s ipd8-16 bin (16 copies of IPD obj 8, seed 105): model -> camera, row-major 3 x 4, mm.

@@ -16,12 +16,6 @@ using namespace binpose;
 
 namespace {
 
-/// ADD-S of `estimate` against `truth` (infinite for a copy a diameter away).
-float addS(const Pose& estimate, const Pose& truth, const EvalModel& eval) {
-  if ((estimate * eval.centroid - truth * eval.centroid).norm() > eval.diameter) return INFINITY;
-  return poseErrors(estimate, truth, eval).add_s_mm;
-}
-
 ModelDatabase databaseOf(const OrientedModel& model) { return ModelDatabase::build(model, defaultQuantization(model.diameter)); }
 
 /// Poses on a 4 x 3 grid, 45 mm apart, over the bin's floor (world frame, mm), each turned by
@@ -66,7 +60,7 @@ TEST(RealSensors, StructuredLightBinWithoutFalseDetections) {
     std::size_t best = 0;
     float nearest = INFINITY;
     for (std::size_t t = 0; t < bin.instances.size(); ++t)
-      if (const float e = addS(d.pose, bin.instances[t].pose, eval); e < nearest) {
+      if (const float e = test::addSTo(d.pose, bin.instances[t].pose, eval); e < nearest) {
         nearest = e;
         best = t;
       }

@@ -1,4 +1,5 @@
 #pragma once
+#include <binpose/evaluation.hpp>
 #include <binpose/types.hpp>
 
 #include <fmt/format.h>
@@ -6,6 +7,7 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <optional>
@@ -15,6 +17,12 @@
 #include <vector>
 
 namespace binpose::test {
+
+/// ADD-S of `estimate` against copy `truth` (infinite for a copy a diameter away).
+inline float addSTo(const Pose& estimate, const Pose& truth, const EvalModel& eval) {
+  if ((estimate * eval.centroid - truth * eval.centroid).norm() > eval.diameter) return INFINITY;
+  return poseErrors(estimate, truth, eval).add_s_mm;
+}
 
 /// A file of ../shared/data (third-party data, read where it lies).
 inline std::string dataPath(const std::string& relative) { return std::string(BINPOSE_DATA_DIR) + "/" + relative; }
