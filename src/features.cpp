@@ -57,18 +57,20 @@ KeySpace::KeySpace(const QuantizationParams& params, float max_distance) : param
   if (!(max_distance > 0) || !std::isfinite(max_distance))
     throw Error(fmt::format("key space needs a positive model diameter, got {}", max_distance));
   const double n_dist = std::floor(max_distance / params.d_dist) + 2.0;  // +1 for the top overlap bin
-  n_angle_ = static_cast<int>(std::floor(std::numbers::pi / params.d_angle)) + 1;
-  const double total = n_dist * n_angle_ * n_angle_ * n_angle_;
+  const double n_angle = std::floor(std::numbers::pi / params.d_angle) + 1.0;
+  const double total = n_dist * n_angle * n_angle * n_angle;
   if (total > double(1u << 28))
-    throw Error(fmt::format("d_dist {} mm is too fine for a {} mm model ({:.0f} keys); use a larger d_dist",
-                            params.d_dist, max_distance, total));
+    throw Error(fmt::format("d_dist {} mm and d_angle {} degrees are too fine for a {} mm model ({:.3g} keys); "
+                            "use larger steps", params.d_dist, params.d_angle * 180 / std::numbers::pi, max_distance, total));
   n_dist_ = static_cast<int>(n_dist);
+  n_angle_ = static_cast<int>(n_angle);
   size_ = static_cast<std::uint32_t>(total);
 }
 
 void KeySpace::bins(float value, float step, int n_bins, int& first, int& second) const {
   const float scaled = value / step;
-  first = std::min(static_cast<int>(std::floor(scaled)), n_bins - 1);  // eq. 4 (pi falls in the last bin)
+  // eq. 4 (pi falls in the last bin); clamped before the cast, which a huge value would overflow
+  first = static_cast<int>(std::fmin(std::floor(scaled), static_cast<float>(n_bins - 1)));
   second = -1;
   const float frac = scaled - static_cast<float>(first);
   if (frac < params_.overlap && first > 0) second = first - 1;  // eq. 7, lower neighbour
@@ -76,8 +78,9 @@ void KeySpace::bins(float value, float step, int n_bins, int& first, int& second
 }
 
 std::uint32_t KeySpace::key(const PairFeature& f) const {
-  const auto mu_d = static_cast<int>(std::floor(f.d / params_.d_dist));
-  if (mu_d < 0 || mu_d >= n_dist_) return kInvalid;
+  const float scaled = std::floor(f.d / params_.d_dist);
+  if (!(scaled >= 0.0f) || scaled >= static_cast<float>(n_dist_)) return kInvalid;
+  const auto mu_d = static_cast<int>(scaled);
   auto angle_bin = [&](float a) { return std::min(static_cast<int>(a / params_.d_angle), n_angle_ - 1); };
   const auto nA = static_cast<std::uint32_t>(n_angle_);
   return ((static_cast<std::uint32_t>(mu_d) * nA + angle_bin(f.theta1)) * nA + angle_bin(f.theta2)) * nA +

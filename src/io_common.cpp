@@ -40,8 +40,28 @@ PointCloud readCloud(const std::string& path, double scale) {
 
 namespace detail {
 
+namespace {
+
+/// The longest message a reader gives (it may quote a token of the file).
+constexpr std::size_t kMostMessageChars = 300;
+
+/// `message` on one printable line: control bytes a file's token may carry (a newline in a PNG
+/// chunk's name, say) written as \xNN, and the text cut at kMostMessageChars.
+std::string oneLine(const std::string& message) {
+  std::string line;
+  for (const char c : message) {
+    if (line.size() >= kMostMessageChars) return line + "...";
+    const auto byte = static_cast<unsigned char>(c);
+    if (byte < 0x20 || byte == 0x7f) line += fmt::format("\\x{:02x}", byte);
+    else line += c;
+  }
+  return line;
+}
+
+}  // namespace
+
 void fail(const std::string& path, const std::string& message) {
-  throw Error(fmt::format("{}: {}", path, message));
+  throw Error(fmt::format("{}: {}", path, oneLine(message)));
 }
 
 std::string readFileBytes(const std::string& path) {

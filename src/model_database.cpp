@@ -308,8 +308,9 @@ ModelDatabase ModelDatabase::load(const std::string& path) {
   }
   if (db.keys_.size() != n_keys || n_points < 2 || n_points > 65535)
     detail::fail(path, "database header is inconsistent");
-  const std::size_t expected = std::size_t{n_points} * 24 + (std::size_t{n_keys} + 1) * 4 + n_entries * 2;
-  if (r.remaining() != expected) detail::fail(path, "database size does not match its header");
+  const std::size_t tables = std::size_t{n_points} * 24 + (std::size_t{n_keys} + 1) * 4;
+  if (r.remaining() < tables || n_entries != (r.remaining() - tables) / 2 || (r.remaining() - tables) % 2 != 0)
+    detail::fail(path, "database size does not match its header");
   db.model_.points.resize(n_points);
   db.model_.normals.resize(n_points);
   for (Vec3& p : db.model_.points) r.getArray(p.data(), 3, "model points");

@@ -156,6 +156,13 @@ TEST(HostileInput, DepthPngIsReadExactlyOrRefused) {
     const std::string path = fileWith("refused.png", bytes);
     EXPECT_NE(refusal([&] { (void)readDepthPng(path, camera()); }).find(why), std::string::npos) << why;
   }
+  // A chunk whose name holds a newline and whose length runs past the end: the message quotes it on one line.
+  std::string cut = png(4, 4, 0, 5000);
+  cut.replace(cut.find("IDAT") - 4, 8, bigEndian(100000) + "ID\nT");
+  const std::string cut_path = fileWith("cut.png", cut);
+  const std::string message = refusal([&] { (void)readDepthPng(cut_path, camera()); });
+  EXPECT_NE(message.find("truncated (in its ID\\x0aT chunk)"), std::string::npos) << message;
+  EXPECT_EQ(message.find('\n'), std::string::npos);
   std::string large = png(4, 4, 0, 0);
   large.replace(16, 8, bigEndian(60000) + bigEndian(60000));  // the header claims 60000 x 60000
   const std::string path = fileWith("large.png", large);
@@ -195,11 +202,16 @@ TEST(HostileInput, DatabaseWithAnImpossibleModelIsRefused) {
   db.save(path);
   const std::string good = test::readAll(path);
   const float nan = NAN, zeros[3] = {0, 0, 0};
-  const float radius = db.model().sample_radius;
+  const float radius = db.model().sample_radius, tiny = 1e-40f;
+  const std::uint64_t entries = db.entryCount(), wrapped = entries | (std::uint64_t{1} << 63);
   const std::pair<std::string, std::string> crafted[] = {
       {recrafted(good, bytesOf(&radius, 1), bytesOf(&nan, 1)), "sample radius"},
       {recrafted(good, bytesOf(db.model().normals[0].data(), 3), bytesOf(zeros, 3)), "unit vector"},
       {recrafted(good, bytesOf(db.model().points[0].data(), 3), bytesOf(&nan, 1)), "not finite"},
+      // an angle step of 1e-40 rad: more keys than any table holds, refused before a cast overflows
+      {recrafted(good, bytesOf(&db.keySpace().params().d_angle, 1), bytesOf(&tiny, 1)), "too fine"},
+      // 2^63 more entries than stored: the size check must not wrap around to a match
+      {recrafted(good, bytesOf(&entries, 1), bytesOf(&wrapped, 1)), "does not match its header"},
   };
   for (const auto& [bytes, why] : crafted) {
     test::writeAll(path, bytes);

@@ -315,6 +315,35 @@ TEST(MeshReader, StlAndErrors) {
   EXPECT_NE(errorOf([&] { readMesh(junk); }).find(junk), std::string::npos);
 }
 
+// OFF is read by binpose (assimp's importer is not safe on crafted files): comments, counts on
+// their own line, extra values per vertex, a quad split in two, metres to millimetres.
+TEST(MeshReader, OffWithCommentsQuadsAndMetres) {
+  const std::string off = test::tempPath("box.off");
+  test::writeAll(off, "OFF # a unit square and a triangle over it\n"
+                      "\n5 3 0\n"
+                      "0 0 0\n0.01 0 0 255 0 0\n0.01 0.01 0\n0 0.01 0\n0.005 0.005 0.01\n"
+                      "4 0 1 2 3\n3 0 1 4 0.5 0.5 0.5\n3 2 3 4\n");
+  const Mesh mesh = readMesh(off, unitScale(Units::Metres));
+  ASSERT_EQ(mesh.vertices.size(), 5u);
+  ASSERT_EQ(mesh.faces.size(), 4u);  // the quad fans into (0 1 2) and (0 2 3)
+  EXPECT_EQ(mesh.faces[1], Eigen::Vector3i(0, 2, 3));
+  EXPECT_TRUE(mesh.vertices[4].isApprox(Vec3(5, 5, 10)));
+  const std::pair<std::string, std::string> broken[] = {
+      {"OFF\n4 1 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 7\n", "face 0 refers to vertex 7 of 4"},
+      {"OFF\n4 1 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n5 0 1 2\n", "face 0 lists 5 vertices but gives 3"},
+      {"OFF\n4 2 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2\n", "truncated"},
+      {"OFF\n4 1 0\n0 0 0\n1 nan 0\n0 1 0\n0 0 1\n3 0 1 2\n", "bad coordinate"},
+      {"OFF\n1e30 1 0\n", "vertex count"},
+      {"PLY\n", "no OFF keyword"},
+  };
+  for (const auto& [text, why] : broken) {
+    test::writeAll(off, text);
+    const std::string message = errorOf([&] { readMesh(off); });
+    EXPECT_NE(message.find(why), std::string::npos) << why << ": " << message;
+    EXPECT_EQ(message.rfind(off, 0), 0u) << message;
+  }
+}
+
 // ---- Depth images and intrinsics ------------------------------------------------------------
 
 TEST(DepthReader, PlaneBackProjectsExactly) {

@@ -26,7 +26,12 @@ PointCloud readPlyCloud(const std::string& path, double scale = 1.0);
 /// non-finite coordinate are dropped; normal_x/y/z are read when present.
 PointCloud readPcd(const std::string& path, double scale = 1.0);
 
-/// Triangle mesh by extension: .ply by readPlyMesh, others (.stl, .obj, .off, ...) by assimp.
+/// OFF (Geomview): "OFF", the vertex and face counts, x y z per vertex (further values ignored),
+/// then n i_1 .. i_n per face (fan-triangulated; colour values after them ignored).
+Mesh readOffMesh(const std::string& path, double scale = 1.0);
+
+/// Triangle mesh by extension: .ply by readPlyMesh, .off by readOffMesh, others (.stl, .obj, ...)
+/// by assimp.
 Mesh readMesh(const std::string& path, double scale = 1.0);
 
 /// Any scan or model as a point cloud, by extension: .ply, .pcd, or a mesh format (its vertices).
