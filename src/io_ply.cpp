@@ -225,13 +225,16 @@ void readFaces(const std::string& path, const Element& e, BodyReader& body, PlyD
       if (!prop.is_list) { body.next(prop.type, "the face data"); continue; }
       const std::size_t n = body.listLength(prop.count_type, "the face data");
       polygon.clear();
+      if (static_cast<int>(p) != list) {  // another list (texture coordinates, say): skipped
+        for (std::size_t k = 0; k < n; ++k) body.next(prop.type, "the face data");
+        continue;
+      }
       for (std::size_t k = 0; k < n; ++k) {
         const double idx = body.next(prop.type, "the face data");
-        if (static_cast<int>(p) == list && (idx < 0 || idx >= n_vertices || idx != std::floor(idx)))
+        if (idx < 0 || idx >= n_vertices || idx != std::floor(idx))
           fail(path, fmt::format("face {} refers to vertex {} of {}", f, idx, out.points.size()));
         polygon.push_back(static_cast<int>(idx));
       }
-      if (static_cast<int>(p) != list) continue;
       for (std::size_t k = 2; k < polygon.size(); ++k)  // fan triangulation of polygons
         out.faces.emplace_back(polygon[0], polygon[k - 1], polygon[k]);
     }

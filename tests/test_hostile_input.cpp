@@ -124,6 +124,14 @@ TEST(HostileInput, PlyWithTwoVertexElementsOrBadCountsIsRefused) {
                                                 "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
                                                 "0 0 0\n1 0 0\n0 1 0\nnan 0 1 2\n");
   EXPECT_NE(refusal([&] { (void)readModelFile(list); }).find("invalid list length"), std::string::npos);
+  // A face's other list (texture coordinates, say) may hold any values: skipped, not cast to int.
+  const std::string other = fileWith("other.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                                                  "property float z\nelement face 1\nproperty list uchar uint texcoord\n"
+                                                  "property list uchar int vertex_indices\nend_header\n"
+                                                  "0 0 0\n1 0 0\n0 1 0\n2 4278190080 7 3 2 0 1\n");
+  const Mesh mesh = readPlyMesh(other);
+  ASSERT_EQ(mesh.faces.size(), 1u);
+  EXPECT_EQ(mesh.faces[0], Eigen::Vector3i(2, 0, 1));
 }
 
 TEST(HostileInput, CameraJsonNestedDeeplyOrHugeIsRefused) {
