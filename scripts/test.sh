@@ -9,7 +9,7 @@ echo "== Release build and tests"
 scripts/build.sh build
 ctest --test-dir build --output-on-failure -j "$(nproc)"
 echo "== ASan + UBSan build and tests"
-scripts/build.sh build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DBINPOSE_SANITIZE=ON -DBINPOSE_BUILD_BENCH=OFF
+scripts/build.sh build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DBINPOSE_SANITIZE=ON -DBINPOSE_BUILD_BENCH=OFF -DBINPOSE_BUILD_PYTHON=OFF
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
   ctest --test-dir build-asan --output-on-failure -j "$(nproc)"
 echo "== Fuzzing the readers (libFuzzer, 60 s per harness)"

@@ -1,0 +1,287 @@
+// The `binpose` Python module (pybind11): train a model, detect it in a cloud or a depth image.
+// Arrays are read in place where their layout allows; the GIL is released while detecting. Every
+// binpose::Error (a bad file, value or array) becomes a ValueError with the CLI's message.
+#include <binpose/detector.hpp>
+#include <binpose/io.hpp>
+#include <binpose/model.hpp>
+#include <binpose/model_database.hpp>
+#include <binpose/params.hpp>
+#include <binpose/shapes.hpp>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <memory>
+#include <optional>
+
+namespace py = pybind11;
+using namespace binpose;
+
+namespace {
+
+template <class T>
+Points rowsOf(const py::array& a) {
+  const auto rows = a.unchecked<T, 2>();
+  Points out(static_cast<std::size_t>(rows.shape(0)));
+  for (py::ssize_t i = 0; i < rows.shape(0); ++i) out[i] = Vec3(float(rows(i, 0)), float(rows(i, 1)), float(rows(i, 2)));
+  return out;
+}
+
+/// An N x 3 array's rows as float points (binpose's own layout: one copy, read in place from a
+/// float32 or float64 array of any strides; other number types converted first); `what` names it.
+Points pointsOf(const py::handle& object, const char* what) {
+  if (!py::isinstance<py::array>(object) && (!py::isinstance<py::sequence>(object) || py::isinstance<py::str>(object)))
+    throw Error(fmt::format("{} must be an N x 3 array, got {}", what, std::string(py::str(py::type::of(object)))));
+  py::array a = py::array::ensure(object);
+  if (!a || a.ndim() != 2 || a.shape(1) != 3) throw Error(fmt::format("{} must be an N x 3 array", what));
+  if (py::isinstance<py::array_t<float>>(a)) return rowsOf<float>(a);
+  if (!py::isinstance<py::array_t<double>>(a)) {
+    const char kind = a.dtype().kind();
+    if (kind != 'f' && kind != 'i' && kind != 'u') throw Error(fmt::format("{} must hold numbers, got dtype {}", what, std::string(py::str(a.dtype()))));
+    a = py::array_t<double, py::array::forcecast>::ensure(a);
+  }
+  return rowsOf<double>(a);
+}
+
+/// The (x, y, z) of a viewpoint, mm.
+Vec3 viewpointOf(const py::handle& object) {
+  py::array a = py::array::ensure(object);
+  if (!a || a.size() != 3) throw Error("viewpoint must be three numbers (x, y, z), mm");
+  const Vec3 v = pointsOf(a.reshape({1, 3}), "viewpoint")[0];
+  if (!v.allFinite()) throw Error("viewpoint must be finite");
+  return v;
+}
+
+/// Points as a new N x 3 float32 array.
+py::array_t<float> arrayOf(const Points& points) {
+  py::array_t<float> out({static_cast<py::ssize_t>(points.size()), py::ssize_t{3}});
+  auto m = out.mutable_unchecked<2>();
+  for (std::size_t i = 0; i < points.size(); ++i)
+    for (int k = 0; k < 3; ++k) m(py::ssize_t(i), k) = points[i][k];
+  return out;
+}
+
+/// A trained model, shared by the detectors made from it (they refer to it).
+struct Database {
+  std::shared_ptr<const ModelDatabase> db;
+};
+
+Database train(const py::object& model, int points, const std::string& units) {
+  ModelParams params;
+  params.num_points = points;
+  const double scale = unitScale(parseUnits(units));
+  OrientedModel oriented;
+  if (py::isinstance<py::str>(model)) {
+    const ModelFile file = readModelOrBuiltin(model.cast<std::string>(), scale);
+    oriented = file.is_mesh ? prepareModel(file.mesh, params) : prepareModel(file.cloud, params);
+  } else if (py::isinstance<py::tuple>(model) && py::len(model) == 2) {
+    const py::tuple pair = model.cast<py::tuple>();
+    Mesh mesh;
+    mesh.vertices = pointsOf(pair[0], "vertices");
+    for (Vec3& v : mesh.vertices) v *= float(scale);
+    for (const Vec3& f : pointsOf(pair[1], "faces")) {
+      const Eigen::Vector3i face = f.cast<int>();
+      if (!(face.cast<float>() == f) || (face.array() < 0).any() || (face.array() >= int(mesh.vertices.size())).any())
+        throw Error(fmt::format("faces must be whole indices into the {} vertices", mesh.vertices.size()));
+      mesh.faces.push_back(face);
+    }
+    for (const Vec3& v : mesh.vertices)
+      if (!v.allFinite()) throw Error("vertices must be finite");
+    oriented = prepareModel(mesh, params);
+  } else {
+    throw Error("model must be a file path, builtin:NAME, or a tuple (vertices N x 3, faces M x 3)");
+  }
+  const QuantizationParams quantization = defaultQuantization(oriented.diameter);
+  return {std::make_shared<const ModelDatabase>(ModelDatabase::build(std::move(oriented), quantization))};
+}
+
+/// A detection as Python sees it: the pose as a 4 x 4 array (model -> scan, mm).
+struct PyDetection {
+  py::array_t<double> pose;
+  float score = 0;
+  int correspondences = 0;
+  float fit_rms_mm = 0;
+};
+
+/// The detections, best first, with the stage timings (ms) and what the scan measured.
+struct PyResult {
+  std::vector<PyDetection> detections;
+  py::dict timing_ms;
+  float noise_mm = 0;
+  std::size_t scene_points = 0;
+};
+
+PyResult toPython(const DetectionResult& r) {
+  PyResult out;
+  for (const Detection& d : r.detections) {
+    py::array_t<double> pose({4, 4});
+    const Eigen::Matrix4f T = d.pose.matrix();
+    auto m = pose.mutable_unchecked<2>();
+    for (int i = 0; i < 4; ++i)
+      for (int j = 0; j < 4; ++j) m(i, j) = T(i, j);
+    out.detections.push_back({std::move(pose), d.score, d.correspondences, d.rms});
+  }
+  out.timing_ms["preprocess"] = r.timing.preprocess_ms;
+  out.timing_ms["vote"] = r.timing.vote_ms;
+  out.timing_ms["match"] = r.timing.match_ms;
+  out.timing_ms["refine"] = r.timing.refine_ms;
+  out.timing_ms["total"] = r.timing.total_ms;
+  out.noise_mm = r.noise_mm;
+  out.scene_points = r.scene_points;
+  return out;
+}
+
+/// Python keyword values as the JSON object applyJson reads (the names of DetectionParams).
+std::string paramsJson(const py::kwargs& kwargs) {
+  nlohmann::json j = nlohmann::json::object();
+  for (const auto& [key, value] : kwargs) {
+    const std::string name = py::str(key);
+    if (py::isinstance<py::bool_>(value)) j[name] = value.cast<bool>();
+    else if (py::isinstance<py::int_>(value)) j[name] = value.cast<long long>();
+    else if (py::isinstance<py::float_>(value)) j[name] = value.cast<double>();
+    else if (py::isinstance<py::str>(value)) j[name] = value.cast<std::string>();
+    else if (name == "viewpoint") {
+      const Vec3 v = viewpointOf(value);
+      j[name] = {v.x(), v.y(), v.z()};
+    } else
+      throw Error(fmt::format("parameters: '{}' has a value of type {}", name, std::string(py::str(py::type::of(value)))));
+  }
+  return j.dump();
+}
+
+/// A detector of one database: the preset scaled to the model, then the user's values. It is
+/// rebuilt when a call gives another viewpoint (the detector's normals face it).
+class PyDetector {
+ public:
+  PyDetector(const Database& database, const std::string& preset, const py::kwargs& kwargs) : db_(database.db) {
+    params_ = scaledToModel(presetByName(preset), db_->model().diameter);
+    applyJson(params_, paramsJson(kwargs), "parameters");
+    validate(params_);
+    detector_ = std::make_unique<Detector>(*db_, params_);
+  }
+
+  PyResult detect(const py::object& points, const py::object& normals, const py::object& viewpoint) {
+    PointCloud scan;
+    scan.points = pointsOf(points, "points");
+    if (!normals.is_none()) {
+      scan.normals = pointsOf(normals, "normals");
+      if (scan.normals.size() != scan.points.size())
+        throw Error(fmt::format("normals has {} rows for {} points", scan.normals.size(), scan.points.size()));
+    }
+    dropNonFinite(scan);
+    return run(scan, viewpoint);
+  }
+
+  PyResult detectDepth(const py::object& depth, double fx, double fy, double cx, double cy, double depth_scale) {
+    if (!py::isinstance<py::array>(depth) || py::array(depth).dtype().kind() != 'u' || py::array(depth).itemsize() != 2 ||
+        py::array(depth).ndim() != 2)
+      throw Error("depth must be an H x W numpy array of uint16");
+    const auto image = py::array_t<std::uint16_t, py::array::c_style | py::array::forcecast>::ensure(depth);
+    Intrinsics camera;
+    camera.fx = fx, camera.fy = fy, camera.cx = cx, camera.cy = cy, camera.depth_scale = depth_scale;
+    const int height = int(image.shape(0)), width = int(image.shape(1));
+    const std::vector<std::uint16_t> values(image.data(), image.data() + image.size());
+    return run(depthToCloud(values, width, height, camera), py::none());
+  }
+
+  [[nodiscard]] py::dict params() const { return py::module_::import("json").attr("loads")(toJson(params_)); }
+
+ private:
+  static void dropNonFinite(PointCloud& scan) {
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < scan.points.size(); ++i) {
+      if (!scan.points[i].allFinite() || (scan.hasNormals() && !scan.normals[i].allFinite())) continue;
+      scan.points[kept] = scan.points[i];
+      if (scan.hasNormals()) scan.normals[kept] = scan.normals[i];
+      ++kept;
+    }
+    scan.points.resize(kept);
+    if (!scan.normals.empty()) scan.normals.resize(kept);
+  }
+
+  PyResult run(const PointCloud& scan, const py::object& viewpoint) {
+    if (!viewpoint.is_none()) {
+      const Vec3 v = viewpointOf(viewpoint);
+      if (v != params_.viewpoint) {
+        params_.viewpoint = v;
+        detector_ = std::make_unique<Detector>(*db_, params_);
+      }
+    }
+    DetectionResult result;
+    {
+      py::gil_scoped_release released;
+      result = detector_->detect(scan);
+    }
+    return toPython(result);
+  }
+
+  std::shared_ptr<const ModelDatabase> db_;
+  DetectionParams params_;
+  std::unique_ptr<Detector> detector_;
+};
+
+}  // namespace
+
+PYBIND11_MODULE(binpose, m) {
+  m.doc() = "binpose: find every copy of a known rigid part in a 3D scan and its 6D pose (mm).";
+  m.attr("__version__") = BINPOSE_VERSION;
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const Error& e) {
+      PyErr_SetString(PyExc_ValueError, e.what());
+    }
+  });
+
+  py::class_<Database>(m, "Database", "A model's feature database (train or load_database).")
+      .def("save", [](const Database& d, const std::string& path) { d.db->save(path); }, py::arg("path"),
+           "Writes the database (.bpdb).")
+      .def_property_readonly("diameter", [](const Database& d) { return d.db->model().diameter; },
+                             "The model's diameter, mm.")
+      .def_property_readonly("points", [](const Database& d) { return d.db->model().points.size(); },
+                             "The model's points n_M.")
+      .def_property_readonly("model_points", [](const Database& d) { return arrayOf(d.db->model().points); },
+                             "The model's points, n_M x 3, mm.")
+      .def_property_readonly("model_normals", [](const Database& d) { return arrayOf(d.db->model().normals); },
+                             "Their unit normals (out of the part), n_M x 3.");
+  m.def("train", &train, py::arg("model"), py::arg("points") = 4000, py::arg("units") = "mm",
+        "Trains on a mesh or cloud file, builtin:NAME, or (vertices N x 3, faces M x 3) arrays.");
+  m.def("load_database", [](const std::string& path) { return Database{std::make_shared<const ModelDatabase>(ModelDatabase::load(path))}; },
+        py::arg("path"), "Loads a database written by train().save() or `binpose train`.");
+
+  py::class_<PyDetection>(m, "Detection", "One found copy of the model.")
+      .def_readonly("pose", &PyDetection::pose, "4 x 4 model -> scan transform, mm")
+      .def_readonly("score", &PyDetection::score, "verification score in [-1, 1]")
+      .def_readonly("correspondences", &PyDetection::correspondences, "clique size |C|")
+      .def_readonly("fit_rms_mm", &PyDetection::fit_rms_mm, "residual of the clique's fit, mm")
+      .def("__repr__", [](const PyDetection& d) {
+        const auto p = d.pose.unchecked<2>();
+        return fmt::format("<Detection score={:.3f} t=({:.1f}, {:.1f}, {:.1f}) mm>", d.score, p(0, 3), p(1, 3), p(2, 3));
+      });
+  py::class_<PyResult>(m, "Result", "The detections, best first (a sequence), with timing_ms.")
+      .def("__len__", [](const PyResult& r) { return r.detections.size(); })
+      .def("__getitem__", [](const PyResult& r, std::size_t i) {
+        if (i >= r.detections.size()) throw py::index_error();
+        return r.detections[i];
+      })
+      .def("__iter__", [](const PyResult& r) { return py::make_iterator(r.detections.begin(), r.detections.end()); },
+           py::keep_alive<0, 1>())
+      .def_readonly("detections", &PyResult::detections)
+      .def_readonly("timing_ms", &PyResult::timing_ms, "preprocess, vote, match, refine, total (ms)")
+      .def_readonly("noise_mm", &PyResult::noise_mm, "the scan's noise measured on it, mm (1 sigma)")
+      .def_readonly("scene_points", &PyResult::scene_points);
+
+  py::class_<PyDetector>(m, "Detector", "Finds every copy of a database's model in scans.")
+      .def(py::init<const Database&, const std::string&, const py::kwargs&>(), py::arg("database"),
+           py::arg("preset") = "default",
+           "preset: default or thesis; keyword parameters by DetectionParams's names (r, eta, e_gmax, C_n, ...), "
+           "in mm, replacing the preset's values scaled to the model.")
+      .def("detect", &PyDetector::detect, py::arg("points"), py::arg("normals") = py::none(),
+           py::arg("viewpoint") = py::none(), "points: N x 3 array in mm; normals: N x 3 or None; viewpoint: (x, y, z) mm.")
+      .def("detect_depth", &PyDetector::detectDepth, py::arg("depth"), py::arg("fx"), py::arg("fy"), py::arg("cx"),
+           py::arg("cy"), py::arg("depth_scale") = 1.0, "depth: H x W uint16 array; depth_mm = raw * depth_scale.")
+      .def_property_readonly("params", &PyDetector::params, "The values the detector runs with (absolute units).");
+}

@@ -1,0 +1,140 @@
+"""The Python module against ground truth: training from arrays, a simulated bin of caps (the
+CLI's simulator, exact poses), the CLI's own answers on the same image, and bad input."""
+import json
+import os
+import subprocess
+
+import numpy as np
+import pytest
+from PIL import Image
+
+import binpose
+
+CLI = os.environ.get("BINPOSE_CLI", "binpose")
+
+
+def box(lx, ly, lz):
+    """A closed box centred on the origin: 8 vertices, 12 outward triangles."""
+    v = np.array([[x, y, z] for x in (-lx / 2, lx / 2) for y in (-ly / 2, ly / 2) for z in (-lz / 2, lz / 2)])
+    f = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                  [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]], dtype=np.int64)
+    return v, f
+
+
+@pytest.fixture(scope="module")
+def caps(tmp_path_factory):
+    """A simulated bin of 6 caps (ideal sensor), a cap database trained here and saved."""
+    folder = tmp_path_factory.mktemp("bin")
+    subprocess.run([CLI, "simulate", "--instances", "6", "--seed", "5", "--out", str(folder)], check=True,
+                   stdout=subprocess.DEVNULL)
+    db = binpose.train("builtin:cap", points=2000)
+    db.save(str(folder / "cap.bpdb"))
+    camera = json.loads((folder / "camera.json").read_text())
+    truth = json.loads((folder / "ground_truth.json").read_text())["instances"]
+    depth = np.array(Image.open(folder / "depth.png")).astype(np.uint16)  # PIL reads 16-bit grey as int32
+    return folder, db, camera, truth, depth
+
+
+def nearest_truth(pose, truth):
+    """The ground-truth instance nearest the pose's position, and the distance to it (mm)."""
+    distances = [np.linalg.norm(np.array(t["pose"])[:3, 3] - pose[:3, 3]) for t in truth]
+    return truth[int(np.argmin(distances))], min(distances)
+
+
+def test_train_from_arrays_and_save_load(tmp_path):
+    vertices, faces = box(40.0, 30.0, 20.0)
+    db = binpose.train((vertices, faces), points=500)
+    assert db.points == 500
+    assert db.diameter == pytest.approx(np.sqrt(40 ** 2 + 30 ** 2 + 20 ** 2), rel=0.05)
+    in_metres = binpose.train((vertices / 1000.0, faces.astype(np.int32)), points=500, units="m")
+    assert in_metres.diameter == pytest.approx(db.diameter, rel=1e-4)
+    db.save(str(tmp_path / "box.bpdb"))
+    loaded = binpose.load_database(str(tmp_path / "box.bpdb"))
+    assert (loaded.points, loaded.diameter) == (db.points, db.diameter)
+
+
+def test_detect_depth_finds_the_simulated_caps(caps):
+    _, db, camera, truth, depth = caps
+    assert depth.dtype == np.uint16
+    result = binpose.Detector(db).detect_depth(depth, camera["fx"], camera["fy"], camera["cx"], camera["cy"],
+                                               camera["depth_scale"])
+    assert result.timing_ms["total"] > 0
+    found = set()
+    for d in result:
+        assert d.pose.shape == (4, 4)
+        assert np.allclose(d.pose[:3, :3] @ d.pose[:3, :3].T, np.eye(3), atol=1e-4)
+        t, distance = nearest_truth(d.pose, truth)
+        assert distance < 3.0, f"a detection {distance:.1f} mm from every cap"
+        # the cap is a body of revolution about its z axis: the axes must agree
+        axis_error = np.degrees(np.arccos(np.clip(d.pose[:3, 2] @ np.array(t["pose"])[:3, 2], -1, 1)))
+        assert axis_error < 5.0
+        found.add(id(t))
+    # every detection is right and distinct; how many of the bin's caps are found is the
+    # benchmark's matter (bench/), not the binding's
+    assert len(found) == len(result) >= 3
+
+
+def test_same_answers_as_the_cli(caps):
+    folder, db, camera, _, depth = caps
+    out = folder / "cli.json"
+    subprocess.run([CLI, "detect", "--model", str(folder / "cap.bpdb"), "--scene", str(folder / "depth.png"),
+                    "--intrinsics", str(folder / "camera.json"), "--out", str(out)], check=True,
+                   stdout=subprocess.DEVNULL)
+    cli = json.loads(out.read_text())["detections"]
+    ours = binpose.Detector(db).detect_depth(depth, camera["fx"], camera["fy"], camera["cx"], camera["cy"],
+                                             camera["depth_scale"])
+    assert len(ours) == len(cli) > 0
+    for d, c in zip(ours, cli):
+        assert np.allclose(d.pose, np.array(c["pose"]), atol=1e-3)
+        assert d.score == pytest.approx(c["score"], abs=1e-6)
+
+
+def test_detect_points_drops_non_finite_rows(caps):
+    _, db, camera, truth, depth = caps
+    rows, cols = np.nonzero(depth)
+    z = depth[rows, cols] * camera["depth_scale"]
+    points = np.stack([(cols - camera["cx"]) * z / camera["fx"], (rows - camera["cy"]) * z / camera["fy"], z], axis=1)
+    detector = binpose.Detector(db, max_instances=3)
+    result = detector.detect(points.astype(np.float32))
+    assert 0 < len(result) <= 3
+    for d in result:
+        assert nearest_truth(d.pose, truth)[1] < 3.0
+    with_nan = np.vstack([points, [[np.nan, 0, 0], [0, np.inf, 1]]])
+    again = detector.detect(with_nan, viewpoint=(0, 0, 0))
+    assert [d.pose.tolist() for d in again] == [d.pose.tolist() for d in detector.detect(points)]
+    assert len(detector.detect(np.zeros((0, 3)))) == 0
+
+
+def test_bad_input_raises_value_error(tmp_path):
+    vertices, faces = box(40.0, 30.0, 20.0)
+    db = binpose.train((vertices, faces), points=300)
+    with pytest.raises(ValueError, match="unknown parameter 'foo'"):
+        binpose.Detector(db, foo=1)
+    with pytest.raises(ValueError, match="r"):
+        binpose.Detector(db, r=-1.0)
+    with pytest.raises(ValueError, match="preset"):
+        binpose.Detector(db, preset="fastest")
+    detector = binpose.Detector(db)
+    with pytest.raises(ValueError, match="N x 3"):
+        detector.detect(np.zeros((5, 2)))
+    with pytest.raises(ValueError, match="N x 3"):
+        detector.detect("not an array")
+    with pytest.raises(ValueError, match="numbers"):
+        detector.detect(np.array([["a", "b", "c"]]))
+    with pytest.raises(ValueError, match="normals"):
+        detector.detect(np.zeros((5, 3)), normals=np.zeros((4, 3)))
+    with pytest.raises(ValueError, match="uint16"):
+        detector.detect_depth(np.zeros((4, 4), np.float32), 500, 500, 2, 2)
+    with pytest.raises(ValueError, match="viewpoint"):
+        detector.detect(np.zeros((5, 3)), viewpoint=(0, 1))
+    with pytest.raises(ValueError, match="whole indices"):
+        binpose.train((vertices, faces + 100))
+    with pytest.raises(ValueError, match="no such file"):
+        binpose.load_database(str(tmp_path / "missing.bpdb"))
+    corrupt = tmp_path / "corrupt.bpdb"
+    db.save(str(corrupt))
+    corrupt.write_bytes(corrupt.read_bytes()[:-9])
+    with pytest.raises(ValueError, match="corrupt|truncated"):
+        binpose.load_database(str(corrupt))
+    with pytest.raises(ValueError, match="missing.ply"):
+        binpose.train(str(tmp_path / "missing.ply"))
