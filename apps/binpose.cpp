@@ -1,4 +1,5 @@
 // binpose command-line front end.
+#include <binpose/bop.hpp>
 #include <binpose/detector.hpp>
 #include <binpose/evaluation.hpp>
 #include <binpose/geometry.hpp>
@@ -254,8 +255,8 @@ int runDetect(const DetectOptions& o) {
 }
 
 struct SimulateOptions {
-  std::string model = "builtin:cap", out, units = "mm", model_info, sensor = "ideal";
-  int obj_id = 1;
+  std::string model = "builtin:cap", out, units = "mm", model_info, sensor = "ideal", bop;
+  int obj_id = 1, scene_id = 1;
   std::vector<float> bin;
   binpose::SimulationParams params;
 };
@@ -280,6 +281,8 @@ void addSimulate(CLI::App& app, SimulateOptions& o) {
       ->check(CLI::IsMember({"ideal", "structured-light", "industrial", "tof"}))
       ->capture_default_str();
   s->add_option("--bin", o.bin, "Bin inside length width height, mm (default 200 200 120)")->expected(3);
+  s->add_option("--bop", o.bop, "Also add the scene to this BOP dataset folder (models/, test/, test_targets_bop19.json)");
+  s->add_option("--scene-id", o.scene_id, "The scene's id in the BOP dataset")->check(CLI::Range(0, 999999))->capture_default_str();
 }
 
 /// BOP models_info entry (diameter, symmetries) of the simulated part, as JSON text.
@@ -305,6 +308,7 @@ int runSimulate(SimulateOptions o) {
   if (!file.is_mesh) throw binpose::Error(fmt::format("{}: the simulator needs a mesh, not a point cloud", o.model));
   const binpose::SimulatedScene scene = binpose::simulateBin(file.mesh, o.params);
   binpose::writeScene(o.out, scene, o.model, modelInfo(o, file.mesh));
+  if (!o.bop.empty()) binpose::writeBopScene(o.bop, o.scene_id, o.obj_id, scene, file.mesh, modelInfo(o, file.mesh));
   fmt::print("{} copies of {} in a {}x{}x{} mm bin; sensor {}x{} px at {} mm\n", o.params.instances, o.model,
              o.params.bin.inner.x(), o.params.bin.inner.y(), o.params.bin.inner.z(), o.params.sensor.width,
              o.params.sensor.height, o.params.sensor.distance);
@@ -321,19 +325,37 @@ int runSimulate(SimulateOptions o) {
 
 struct EvalOptions {
   std::string truth, result, model, out, units = "mm", models_info, obj_id = "1";
+  std::optional<int> scene_id;
+  int im_id = 0;
   float threshold = 0.1f;
 };
 
 void addEval(CLI::App& app, EvalOptions& o) {
   CLI::App* e = app.add_subcommand("eval", "Score detections against a simulated scene's ground truth (thesis 7.1.3)");
   e->add_option("--truth", o.truth, "Folder written by binpose simulate")->required();
-  e->add_option("--result", o.result, "result.json written by binpose detect")->required();
+  e->add_option("--result", o.result, "result.json written by binpose detect, or a BOP19 results CSV (binpose bop)")->required();
+  e->add_option("--scene-id", o.scene_id, "The CSV rows' scene (default: the CSV's only one)");
+  e->add_option("--im-id", o.im_id, "The CSV rows' image")->capture_default_str();
   e->add_option("--model", o.model, "The part's mesh (or builtin:NAME), as simulated")->required();
   e->add_option("--units", o.units, "Length unit of the model file")->check(CLI::IsMember({"mm", "m"}))->capture_default_str();
   e->add_option("--models-info", o.models_info, "BOP models_info.json with the symmetries (default: the truth folder's)");
   e->add_option("--obj-id", o.obj_id, "Entry of models_info.json")->capture_default_str();
   e->add_option("--threshold", o.threshold, "A detection is correct when ADD-S < threshold x diameter")->capture_default_str();
   e->add_option("--out", o.out, "Write the evaluation as JSON here");
+}
+
+/// Poses (best first) and time of one image's object in a BOP19 results CSV.
+std::pair<std::vector<binpose::Pose>, double> readCsvResult(const EvalOptions& o) {
+  auto rows = binpose::readBopCsv(o.result);
+  int scene = o.scene_id.value_or(rows.empty() ? 0 : rows.front().scene_id);
+  for (const auto& r : rows)
+    if (!o.scene_id && r.scene_id != scene)
+      throw binpose::Error(fmt::format("{}: rows of several scenes; choose one with --scene-id", o.result));
+  std::erase_if(rows, [&](const binpose::BopResult& r) { return r.scene_id != scene || r.im_id != o.im_id || std::to_string(r.obj_id) != o.obj_id; });
+  std::stable_sort(rows.begin(), rows.end(), [](const auto& a, const auto& b) { return a.score > b.score; });
+  std::vector<binpose::Pose> poses;
+  for (const auto& r : rows) poses.push_back(r.pose);
+  return {poses, rows.empty() || rows.front().time_s < 0 ? 0.0 : 1000.0 * rows.front().time_s};
 }
 
 /// Poses and total time of a result.json.
@@ -378,7 +400,8 @@ nlohmann::json reportJson(const binpose::EvaluationReport& r) {
 
 int runEval(const EvalOptions& o) {
   const binpose::GroundTruth truth = binpose::readGroundTruth(o.truth);
-  const auto [poses, total_ms] = readResult(o.result);
+  const bool csv = o.result.size() > 4 && o.result.substr(o.result.size() - 4) == ".csv";
+  const auto [poses, total_ms] = csv ? readCsvResult(o) : readResult(o.result);
   const binpose::ModelFile file = binpose::readModelOrBuiltin(o.model, binpose::unitScale(binpose::parseUnits(o.units)));
   if (!file.is_mesh) throw binpose::Error(fmt::format("{}: evaluation needs the part's mesh", o.model));
   const std::string info = o.models_info.empty() ? o.truth + "/models_info.json" : o.models_info;
@@ -451,6 +474,42 @@ int runSweepCommand(const SweepOptions& o) {
   return 0;
 }
 
+struct BopOptions {
+  binpose::BopRun run;
+  std::string out;
+  int threads = 0;
+};
+
+void addBop(CLI::App& app, BopOptions& o) {
+  CLI::App* b = app.add_subcommand("bop", "Detect the targets of a BOP dataset's split; write the BOP19 results CSV");
+  b->add_option("--dataset", o.run.dataset, "The dataset's folder (models/, SPLIT/SCENE/depth, scene_camera.json)")->required();
+  b->add_option("--split", o.run.split, "The split's folder")->capture_default_str();
+  b->add_option("--targets", o.run.targets, "test_targets_bop19.json (default: the dataset's)");
+  b->add_option("--objects", o.run.objects, "Only these obj_ids (comma-separated)")->delimiter(',');
+  b->add_option("--out", o.out, "Results CSV (scene_id,im_id,obj_id,score,R,t,time)")->required();
+  b->add_option("--cache", o.run.cache, "Folder of trained databases, reused (default: binpose_models beside --out)");
+  b->add_option("--preset", o.run.preset, "Parameter preset: default or thesis")->check(CLI::IsMember({"default", "fast", "thesis"}))->capture_default_str();
+  b->add_option("--params", o.run.params_file, "JSON file of parameters (absolute units, mm), applied after the preset");
+  b->add_option("--model-points", o.run.model_points, "Model points when training")->capture_default_str();
+  b->add_option("--threads", o.threads, "Worker threads (0: all cores)")->check(CLI::Range(0, 1024))->capture_default_str();
+}
+
+int runBopCommand(BopOptions o) {
+  std::optional<tbb::global_control> threads;
+  if (o.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(o.threads));
+  if (o.run.cache.empty())
+    o.run.cache = (std::filesystem::absolute(o.out).parent_path() / "binpose_models").string();
+  const auto t0 = Clock::now();
+  const auto results = binpose::runBop(o.run, [&](std::size_t done, std::size_t total) {
+    const auto bar = static_cast<std::size_t>(30 * done / std::max<std::size_t>(1, total));
+    fmt::print(stderr, "\r[{:<30}] {}/{} images, {:.0f} s", std::string(bar, '#'), done, total, secondsSince(t0));
+    if (done == total) fmt::print(stderr, "\n");
+  });
+  binpose::writeBopCsv(o.out, results);
+  fmt::print("{} poses in {:.1f} s; written to {} (databases in {})\n", results.size(), secondsSince(t0), o.out, o.run.cache);
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -466,6 +525,8 @@ int main(int argc, char** argv) {
   addEval(app, eval);
   SweepOptions sweep;
   addSweep(app, sweep);
+  BopOptions bop;
+  addBop(app, bop);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -477,6 +538,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("simulate")) return runSimulate(simulate);
     if (app.got_subcommand("eval")) return runEval(eval);
     if (app.got_subcommand("sweep")) return runSweepCommand(sweep);
+    if (app.got_subcommand("bop")) return runBopCommand(bop);
   } catch (const binpose::Error& e) {
     fmt::print(stderr, "error: {}\n", e.what());
     return 2;

@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -25,6 +26,8 @@ namespace {
 /// A projector ray that meets something this much short of the surface point is shadowed, mm.
 constexpr float kShadowTolerance = 0.5f;
 constexpr float kMetres = 0.001f;  // Bullet works best near metre scale: it simulates in metres
+/// Copies less visible than this are not a BOP target (the toolkit's visib_fract threshold).
+constexpr float kTargetVisibility = 0.1f;
 
 btVector3 toBt(const Vec3& v) { return btVector3(v.x() * kMetres, v.y() * kMetres, v.z() * kMetres); }
 
@@ -375,6 +378,38 @@ SimulatedScene simulateBin(const Mesh& mesh, const SimulationParams& params) {
   return renderBin(mesh, poses, params.bin, params.sensor, params.seed);
 }
 
+namespace {
+
+/// BOP's per-scene files for image 0: scene_gt.json, scene_gt_info.json, scene_camera.json.
+struct BopSceneFiles {
+  nlohmann::json gt, info, camera;
+};
+
+BopSceneFiles bopSceneFiles(const SimulatedScene& scene, int obj_id) {
+  nlohmann::json gt = nlohmann::json::array(), info = nlohmann::json::array();
+  for (const SimulatedInstance& inst : scene.instances) {
+    const Eigen::Matrix3f R = inst.pose.linear();  // BOP: row-major
+    const Vec3 t = inst.pose.translation();
+    gt.push_back({{"cam_R_m2c", {R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2)}},
+                  {"cam_t_m2c", {t.x(), t.y(), t.z()}}, {"obj_id", obj_id}});
+    info.push_back({{"visib_fract", inst.visib_fract}, {"px_count_visib", inst.visible_pixels}});
+  }
+  const Intrinsics& k = scene.intrinsics;
+  nlohmann::json camera{{"cam_K", {k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0}}, {"depth_scale", k.depth_scale}};
+  return {{{"0", gt}}, {{"0", info}}, {{"0", camera}}};
+}
+
+/// The JSON of `path`, or `fallback` when there is no such file.
+nlohmann::json jsonOr(const std::string& path, nlohmann::json fallback) {
+  if (!std::filesystem::exists(path)) return fallback;
+  std::ifstream in(path);
+  auto j = nlohmann::json::parse(in, nullptr, false);
+  if (j.is_discarded() || j.type() != fallback.type()) throw Error(fmt::format("{}: not the JSON this file should hold", path));
+  return j;
+}
+
+}  // namespace
+
 void writeScene(const std::string& dir, const SimulatedScene& scene, const std::string& model_name,
                 const std::string& model_info) {
   std::filesystem::create_directories(dir);
@@ -384,23 +419,42 @@ void writeScene(const std::string& dir, const SimulatedScene& scene, const std::
             {{"fx", k.fx}, {"fy", k.fy}, {"cx", k.cx}, {"cy", k.cy}, {"depth_scale", k.depth_scale}, {"width", k.width}, {"height", k.height}});
   writePly(dir + "/scene.ply", scene.cloud.points);
   nlohmann::json gt{{"model", model_name}, {"units", "mm"}, {"camera_from_world", matrixJson(scene.camera_from_world)}};
-  nlohmann::json bop_gt = nlohmann::json::array(), bop_info = nlohmann::json::array();
   gt["instances"] = nlohmann::json::array();
-  for (const SimulatedInstance& inst : scene.instances) {
+  for (const SimulatedInstance& inst : scene.instances)
     gt["instances"].push_back({{"pose", matrixJson(inst.pose)}, {"visible_fraction", inst.visible_fraction},
                                {"visible_pixels", inst.visible_pixels}, {"visib_fract", inst.visib_fract}});
-    const Eigen::Matrix3f R = inst.pose.linear();  // BOP: row-major
-    bop_gt.push_back({{"cam_R_m2c", {R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2)}},
-                      {"cam_t_m2c", {inst.pose.translation().x(), inst.pose.translation().y(), inst.pose.translation().z()}},
-                      {"obj_id", 1}});
-    bop_info.push_back({{"visib_fract", inst.visib_fract}, {"px_count_visib", inst.visible_pixels}});
-  }
   writeJson(dir + "/ground_truth.json", gt);
-  writeJson(dir + "/scene_gt.json", {{"0", bop_gt}});
-  writeJson(dir + "/scene_gt_info.json", {{"0", bop_info}});
-  writeJson(dir + "/scene_camera.json",
-            {{"0", {{"cam_K", {k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0}}, {"depth_scale", k.depth_scale}}}});
+  const BopSceneFiles bop = bopSceneFiles(scene, 1);
+  writeJson(dir + "/scene_gt.json", bop.gt);
+  writeJson(dir + "/scene_gt_info.json", bop.info);
+  writeJson(dir + "/scene_camera.json", bop.camera);
   if (!model_info.empty()) writeJson(dir + "/models_info.json", {{"1", nlohmann::json::parse(model_info)}});
+}
+
+void writeBopScene(const std::string& dataset, int scene_id, int obj_id, const SimulatedScene& scene, const Mesh& mesh,
+                   const std::string& model_info) {
+  const std::string models = dataset + "/models", id = fmt::format("{:06}", obj_id);
+  const std::string dir = fmt::format("{}/test/{:06}", dataset, scene_id);
+  std::filesystem::create_directories(models);
+  std::filesystem::create_directories(dir + "/depth");
+  writePly(models + "/obj_" + id + ".ply", mesh.vertices, {}, mesh.faces);
+  nlohmann::json info = jsonOr(models + "/models_info.json", nlohmann::json::object());
+  info[std::to_string(obj_id)] = nlohmann::json::parse(model_info);
+  writeJson(models + "/models_info.json", info);
+  writeDepthPng(dir + "/depth/000000.png", scene.depth, scene.intrinsics.width, scene.intrinsics.height);
+  const BopSceneFiles bop = bopSceneFiles(scene, obj_id);
+  writeJson(dir + "/scene_gt.json", bop.gt);
+  writeJson(dir + "/scene_gt_info.json", bop.info);
+  writeJson(dir + "/scene_camera.json", bop.camera);
+  // The target: the copies at least 10 % visible (BOP's own rule for its targets), at least one.
+  const auto seen = std::count_if(scene.instances.begin(), scene.instances.end(),
+                                  [](const SimulatedInstance& i) { return i.visib_fract >= kTargetVisibility; });
+  nlohmann::json targets = jsonOr(dataset + "/test_targets_bop19.json", nlohmann::json::array());
+  nlohmann::json kept = nlohmann::json::array();
+  for (const auto& t : targets)
+    if (!(t.value("scene_id", -1) == scene_id && t.value("obj_id", -1) == obj_id)) kept.push_back(t);
+  kept.push_back({{"im_id", 0}, {"inst_count", std::max<long>(1, seen)}, {"obj_id", obj_id}, {"scene_id", scene_id}});
+  writeJson(dataset + "/test_targets_bop19.json", kept);
 }
 
 std::string defaultModelInfo(const std::string& model_name, const Mesh& mesh) {

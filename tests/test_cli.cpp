@@ -181,3 +181,51 @@ TEST(DetectCli, ParametersFromJsonAndPreset) {
   EXPECT_EQ(p["pipeline"].get<std::string>(), "thesis");  // the preset
   EXPECT_FALSE(p["refine"].get<bool>());
 }
+
+// The BOP loop closed on a fresh machine: `binpose simulate --bop` builds a dataset, `binpose
+// bop` detects its targets into a BOP19 CSV, and `binpose eval` scores that CSV exactly as it
+// scores `binpose detect`'s JSON on the same images with the same database.
+TEST(BopCli, SimulatedDatasetScoresAsDetectDoes) {
+  const std::string root = test::tempPath("bop");
+  std::filesystem::remove_all(root);
+  for (int scene = 1; scene <= 2; ++scene) {
+    const CliRun sim = runCli(fmt::format("simulate --instances 5 --seed {} --out {}/flat{} --bop {}/ds --scene-id {}",
+                                          20 + scene, root, scene, root, scene));
+    ASSERT_EQ(sim.code, 0) << sim.out;
+  }
+  const auto targets = nlohmann::json::parse(test::readAll(root + "/ds/test_targets_bop19.json"));
+  ASSERT_EQ(targets.size(), 2u);
+  EXPECT_EQ(targets[0]["inst_count"].get<int>(), 5);
+  const CliRun bop = runCli(fmt::format("bop --dataset {0}/ds --out {0}/results.csv", root));
+  ASSERT_EQ(bop.code, 0) << bop.out;
+  EXPECT_NE(bop.err.find("2/2 images"), std::string::npos) << "progress";
+  const std::string csv = test::readAll(root + "/results.csv");
+  EXPECT_EQ(csv.rfind("scene_id,im_id,obj_id,score,R,t,time\n", 0), 0u);
+  for (int scene = 1; scene <= 2; ++scene) {
+    const std::string images = fmt::format("{}/ds/test/{:06}", root, scene);
+    ASSERT_EQ(runCli(fmt::format("detect --model {0}/binpose_models/obj_000001.bpdb --scene {1}/depth/000000.png "
+                                 "--intrinsics {1}/scene_camera.json --image-id 0 --max-instances 5 --out {0}/r.json",
+                                 root, images)).code, 0);
+    const std::string flat = fmt::format("{}/flat{}", root, scene);
+    ASSERT_EQ(runCli(fmt::format("eval --truth {} --result {}/r.json --model builtin:cap --out {}/json_eval.json", flat, root, root)).code, 0);
+    const CliRun csv_eval = runCli(fmt::format("eval --truth {} --result {}/results.csv --scene-id {} --model builtin:cap --out {}/csv_eval.json",
+                                               flat, root, scene, root));
+    ASSERT_EQ(csv_eval.code, 0) << csv_eval.out;
+    const auto a = nlohmann::json::parse(test::readAll(root + "/json_eval.json"));
+    const auto b = nlohmann::json::parse(test::readAll(root + "/csv_eval.json"));
+    EXPECT_GT(a["matched"].get<int>(), 0) << "scene " << scene;
+    for (const char* key : {"matched", "detections", "recall", "precision"}) EXPECT_EQ(a[key], b[key]) << key;
+    for (const char* key : {"mean_centroid_error_mm", "mean_angle_error_deg", "mean_add_s_mm"})
+      EXPECT_NEAR(a[key].get<double>(), b[key].get<double>(), 1e-3) << key;
+  }
+  const CliRun several = runCli(fmt::format("eval --truth {0}/flat1 --result {0}/results.csv --model builtin:cap", root));
+  EXPECT_EQ(several.code, 2);
+  EXPECT_NE(several.err.find("--scene-id"), std::string::npos) << several.err;
+  test::writeAll(root + "/bad.csv", "scene_id,im_id,obj_id,score,R,t,time\n1,0,1,0.5,1 0 0 0 1 0 0 0,0 0 0,-1\n");
+  const CliRun bad = runCli(fmt::format("eval --truth {0}/flat1 --result {0}/bad.csv --model builtin:cap", root));
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.err.find("line 2: 8 values where 9 belong"), std::string::npos) << bad.err;
+  const CliRun missing = runCli(fmt::format("bop --dataset {0}/nothing --out {0}/x.csv", root));
+  EXPECT_EQ(missing.code, 2);
+  EXPECT_NE(missing.err.find("test_targets_bop19.json: no such file"), std::string::npos) << missing.err;
+}

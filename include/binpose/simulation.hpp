@@ -73,6 +73,14 @@ SimulatedScene simulateBin(const Mesh& mesh, const SimulationParams& params);
 void writeScene(const std::string& dir, const SimulatedScene& scene, const std::string& model_name,
                 const std::string& model_info);
 
+/// The scene as image 0 of scene `scene_id` of a BOP dataset (Hodan et al. 2018) under `dataset`:
+/// models/obj_XXXXXX.ply (the part, mm) and models_info.json (`model_info` as object `obj_id`,
+/// merged with the file's other objects), test/SSSSSS/depth/000000.png, scene_camera.json,
+/// scene_gt.json, scene_gt_info.json, and the scene's entry in test_targets_bop19.json (its
+/// copies at least 10 % visible). Several calls with other scene ids build a dataset.
+void writeBopScene(const std::string& dataset, int scene_id, int obj_id, const SimulatedScene& scene, const Mesh& mesh,
+                   const std::string& model_info);
+
 /// A BOP models_info.json entry for a part: its diameter, and for builtin:cap and builtin:sphere
 /// their continuous symmetry about z (other parts: none declared).
 std::string defaultModelInfo(const std::string& model_name, const Mesh& mesh);
