@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The demo: installs dependencies, builds, then on the built-in bottle cap runs
 #   simulate (16 caps dropped into a bin, seen by a depth sensor) -> train -> detect -> eval
-# and prints the summary and the path of the rendered picture. Everything goes to out/demo/.
+# and prints the summary and the path of the rendered picture (everything in out/demo/), then
+# installs binpose (CLI, C++ package, Python module) under /usr/local: python3 -c "import binpose".
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/deps.sh
@@ -18,3 +19,8 @@ build/binpose detect --model "$out/cap.bpdb" --scene "$out/bin/depth.png" --intr
 echo; echo "== eval against the exact ground truth"
 build/binpose eval --truth "$out/bin" --result "$out/result.json" --model builtin:cap --out "$out/eval.json"
 echo; echo "picture of the detections: $out/detections.png"
+echo; echo "== install: the CLI, binpose::core (find_package(binpose)) and the Python module under /usr/local"
+SUDO=""
+[ "$(id -u)" -eq 0 ] || SUDO="sudo"
+$SUDO cmake --install build > /dev/null
+/usr/bin/python3 -c "import binpose; print('python3: binpose', binpose.__version__, 'from', binpose.__file__)"

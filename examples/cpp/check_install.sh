@@ -12,6 +12,7 @@ cmake -S "$here" -B "$work/consumer" -G Ninja -DCMAKE_PREFIX_PATH="$work/prefix"
 cmake --build "$work/consumer" > /dev/null
 "$work/prefix/bin/binpose" simulate --instances 4 --seed 4 --out "$work/bin" > /dev/null
 "$work/consumer/find_caps" "$work/bin/depth.png" "$work/bin/camera.json"
-if [ -d "$work/prefix/lib/python3/dist-packages" ]; then
-  PYTHONPATH="$work/prefix/lib/python3/dist-packages" "${PYTHON:-python3}" -c "import binpose; print('python module', binpose.__version__)"
+module=$(find "$work/prefix/lib" -name 'binpose*.so' -path '*dist-packages*' | head -1)
+if [ -n "$module" ]; then
+  PYTHONPATH=$(dirname "$module") "${PYTHON:-python3}" -c "import binpose; print('python module', binpose.__version__)"
 fi
