@@ -10,6 +10,7 @@
 #include <binpose/shapes.hpp>
 #include <binpose/simulation.hpp>
 #include <binpose/sweep.hpp>
+#include <binpose/thesis_scene.hpp>
 
 #include <CLI/CLI.hpp>
 #include <tbb/global_control.h>
@@ -255,8 +256,9 @@ int runDetect(const DetectOptions& o) {
 }
 
 struct SimulateOptions {
-  std::string model = "builtin:cap", out, units = "mm", model_info, sensor = "ideal", bop;
+  std::string model = "builtin:cap", out, units = "mm", model_info, sensor = "ideal", bop, style = "bin";
   int obj_id = 1, scene_id = 1;
+  float density = binpose::ThesisSceneParams{}.density;
   std::vector<float> bin;
   binpose::SimulationParams params;
 };
@@ -281,6 +283,10 @@ void addSimulate(CLI::App& app, SimulateOptions& o) {
       ->check(CLI::IsMember({"ideal", "structured-light", "industrial", "tof"}))
       ->capture_default_str();
   s->add_option("--bin", o.bin, "Bin inside length width height, mm (default 200 200 120)")->expected(3);
+  s->add_option("--style", o.style, "bin: parts dropped into a bin, seen by the sensor; thesis: the thesis's synthetic "
+                "scenes (7.4): copies apart at random poses, random surface samples, random occlusion, no bin or sensor")
+      ->check(CLI::IsMember({"bin", "thesis"}))->capture_default_str();
+  s->add_option("--density", o.density, "Thesis style: points drawn per mm^2 of each copy's surface")->capture_default_str();
   s->add_option("--bop", o.bop, "Also add the scene to this BOP dataset folder (models/, test/, test_targets_bop19.json)");
   s->add_option("--scene-id", o.scene_id, "The scene's id in the BOP dataset")->check(CLI::Range(0, 999999))->capture_default_str();
 }
@@ -306,12 +312,21 @@ int runSimulate(SimulateOptions o) {
   o.params.sensor.cy = (o.params.sensor.height - 1) / 2.0;
   const binpose::ModelFile file = binpose::readModelOrBuiltin(o.model, binpose::unitScale(binpose::parseUnits(o.units)));
   if (!file.is_mesh) throw binpose::Error(fmt::format("{}: the simulator needs a mesh, not a point cloud", o.model));
-  const binpose::SimulatedScene scene = binpose::simulateBin(file.mesh, o.params);
+  binpose::ThesisSceneParams thesis;
+  thesis.instances = o.params.instances;
+  thesis.seed = o.params.seed;
+  thesis.density = o.density;
+  const binpose::SimulatedScene scene =
+      o.style == "thesis" ? binpose::simulateThesisScene(file.mesh, thesis) : binpose::simulateBin(file.mesh, o.params);
   binpose::writeScene(o.out, scene, o.model, modelInfo(o, file.mesh));
   if (!o.bop.empty()) binpose::writeBopScene(o.bop, o.scene_id, o.obj_id, scene, file.mesh, modelInfo(o, file.mesh));
-  fmt::print("{} copies of {} in a {}x{}x{} mm bin; sensor {}x{} px at {} mm\n", o.params.instances, o.model,
-             o.params.bin.inner.x(), o.params.bin.inner.y(), o.params.bin.inner.z(), o.params.sensor.width,
-             o.params.sensor.height, o.params.sensor.distance);
+  if (o.style == "thesis")
+    fmt::print("{} copies of {} at random poses {} mm from the viewer, {} points/mm^2, randomly occluded (thesis 7.4)\n",
+               o.params.instances, o.model, thesis.distance, thesis.density);
+  else
+    fmt::print("{} copies of {} in a {}x{}x{} mm bin; sensor {}x{} px at {} mm\n", o.params.instances, o.model,
+               o.params.bin.inner.x(), o.params.bin.inner.y(), o.params.bin.inner.z(), o.params.sensor.width,
+               o.params.sensor.height, o.params.sensor.distance);
   fmt::print("{:>4}  {:>27}  {:>8}  {:>7}  {:>11}\n", "copy", "position in camera (mm)", "surface", "pixels", "visib_fract");
   for (std::size_t i = 0; i < scene.instances.size(); ++i) {
     const auto& inst = scene.instances[i];
@@ -441,6 +456,8 @@ void addSweep(CLI::App& app, SweepOptions& o) {
   w->add_option("--scenes", o.settings.scenes, "Simulated bins")->capture_default_str();
   w->add_option("--instances", o.settings.instances, "Parts per bin")->capture_default_str();
   w->add_option("--seed", o.settings.seed, "Seed of the first bin")->capture_default_str();
+  w->add_flag("--thesis-scenes", o.settings.thesis_style, "Thesis-style scenes (simulate --style thesis) instead of bins");
+  w->add_option("--density", o.settings.thesis.density, "Thesis-style scenes: points drawn per mm^2 of surface")->capture_default_str();
   w->add_option("--out", o.settings.out, "Output folder")->required();
   w->add_option("--r", o.r, "Sampling radii r, mm (comma-separated)")->delimiter(',');
   w->add_option("--rho-sub", o.rho_sub, "Densities rho_sub, points/mm^2")->delimiter(',');

@@ -414,9 +414,12 @@ void writeScene(const std::string& dir, const SimulatedScene& scene, const std::
                 const std::string& model_info) {
   std::filesystem::create_directories(dir);
   const Intrinsics& k = scene.intrinsics;
-  writeDepthPng(dir + "/depth.png", scene.depth, k.width, k.height);
-  writeJson(dir + "/camera.json",
-            {{"fx", k.fx}, {"fy", k.fy}, {"cx", k.cx}, {"cy", k.cy}, {"depth_scale", k.depth_scale}, {"width", k.width}, {"height", k.height}});
+  const bool imaged = !scene.depth.empty();  // a thesis-style scene is a cloud without a camera
+  if (imaged) {
+    writeDepthPng(dir + "/depth.png", scene.depth, k.width, k.height);
+    writeJson(dir + "/camera.json", {{"fx", k.fx}, {"fy", k.fy}, {"cx", k.cx}, {"cy", k.cy}, {"depth_scale", k.depth_scale},
+                                     {"width", k.width}, {"height", k.height}});
+  }
   writePly(dir + "/scene.ply", scene.cloud.points);
   nlohmann::json gt{{"model", model_name}, {"units", "mm"}, {"camera_from_world", matrixJson(scene.camera_from_world)}};
   gt["instances"] = nlohmann::json::array();
@@ -427,12 +430,13 @@ void writeScene(const std::string& dir, const SimulatedScene& scene, const std::
   const BopSceneFiles bop = bopSceneFiles(scene, 1);
   writeJson(dir + "/scene_gt.json", bop.gt);
   writeJson(dir + "/scene_gt_info.json", bop.info);
-  writeJson(dir + "/scene_camera.json", bop.camera);
+  if (imaged) writeJson(dir + "/scene_camera.json", bop.camera);
   if (!model_info.empty()) writeJson(dir + "/models_info.json", {{"1", nlohmann::json::parse(model_info)}});
 }
 
 void writeBopScene(const std::string& dataset, int scene_id, int obj_id, const SimulatedScene& scene, const Mesh& mesh,
                    const std::string& model_info) {
+  if (scene.depth.empty()) throw Error(fmt::format("{}: a BOP scene needs a depth image (not a thesis-style cloud)", dataset));
   const std::string models = dataset + "/models", id = fmt::format("{:06}", obj_id);
   const std::string dir = fmt::format("{}/test/{:06}", dataset, scene_id);
   std::filesystem::create_directories(models);

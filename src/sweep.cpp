@@ -54,10 +54,18 @@ std::vector<SweepRow> runSweep(const SweepSettings& s, const SweepGrid& grid, co
   for (int i = 0; i < s.scenes; ++i) {
     const std::string dir = fmt::format("{}/scenes/{:03d}", s.out, i);
     if (!std::filesystem::exists(dir + "/ground_truth.json")) {
-      SimulationParams sim = s.simulation;
-      sim.instances = s.instances;
-      sim.seed = s.seed + static_cast<std::uint64_t>(i);
-      writeScene(dir, simulateBin(mesh, sim), s.model, defaultModelInfo(s.model, mesh));
+      const std::uint64_t seed = s.seed + static_cast<std::uint64_t>(i);
+      if (s.thesis_style) {
+        ThesisSceneParams thesis = s.thesis;
+        thesis.instances = s.instances;
+        thesis.seed = seed;
+        writeScene(dir, simulateThesisScene(mesh, thesis), s.model, defaultModelInfo(s.model, mesh));
+      } else {
+        SimulationParams sim = s.simulation;
+        sim.instances = s.instances;
+        sim.seed = seed;
+        writeScene(dir, simulateBin(mesh, sim), s.model, defaultModelInfo(s.model, mesh));
+      }
     }
     dirs.push_back(dir);
   }

@@ -68,7 +68,8 @@ SimulatedScene renderBin(const Mesh& mesh, const std::vector<Pose>& world_poses,
 SimulatedScene simulateBin(const Mesh& mesh, const SimulationParams& params);
 
 /// Writes DIR/depth.png, DIR/camera.json, DIR/scene.ply (camera frame, mm), DIR/ground_truth.json,
-/// and BOP's DIR/scene_gt.json, scene_gt_info.json, scene_camera.json. `model_info` (BOP
+/// and BOP's DIR/scene_gt.json, scene_gt_info.json, scene_camera.json (no depth.png, camera.json
+/// or scene_camera.json for a scene without a depth image). `model_info` (BOP
 /// models_info.json entry text for obj_id 1, may be empty) goes to DIR/models_info.json.
 void writeScene(const std::string& dir, const SimulatedScene& scene, const std::string& model_name,
                 const std::string& model_info);

@@ -2,6 +2,7 @@
 // Parameter sweeps over simulated bins (thesis 7.2-7.4, Tables 1-7).
 #include <binpose/evaluation.hpp>
 #include <binpose/params.hpp>
+#include <binpose/thesis_scene.hpp>
 
 #include <functional>
 #include <map>
@@ -21,6 +22,8 @@ struct SweepSettings {
   int instances = 16;
   std::uint64_t seed = 1;
   SimulationParams simulation;
+  bool thesis_style = false;  ///< thesis-style scenes (thesis_scene.hpp) instead of physics bins
+  ThesisSceneParams thesis;   ///< their parameters (instances and seed from above)
   std::string out;  ///< folder: scenes/, results.csv, instances.csv, plots
 };
 
