@@ -6,9 +6,11 @@
 #include <binpose/model_database.hpp>
 #include <binpose/shapes.hpp>
 
+#include <Eigen/QR>
 #include <filesystem>
 #include <fmt/format.h>
 #include <fstream>
+#include <optional>
 #include <algorithm>
 
 namespace binpose {
@@ -127,9 +129,33 @@ struct Sum {
   double recall = 0, precision = 0, centroid = 0, angle = 0, ms = 0;
 };
 
+/// The sums by combination, and the recognition rate's polynomial fit when there is one.
+struct Summaries {
+  std::map<std::vector<double>, Sum> sums;
+  std::optional<Eigen::Vector4d> fit;
+};
+
+/// The thesis's polynomial fit of recognition rate (%) against visible surface (Figures 34 and
+/// 38), of third order in u = visible % / 100, weighted by each bin's count: the 10 % bins give at
+/// most six points, which its fifth order would only interpolate. None under five bins.
+std::optional<Eigen::Vector4d> recognitionFit(const std::vector<int>& total, const std::vector<int>& found) {
+  std::vector<int> bins;
+  for (std::size_t b = 0; b < total.size(); ++b)
+    if (total[b] > 0) bins.push_back(static_cast<int>(b));
+  if (bins.size() < 5) return std::nullopt;
+  Eigen::MatrixXd A(bins.size(), 4);
+  Eigen::VectorXd y(bins.size());
+  for (std::size_t i = 0; i < bins.size(); ++i) {
+    const double u = (10.0 * bins[i] + 5.0) / 100.0, w = std::sqrt(double(total[std::size_t(bins[i])]));
+    A.row(Eigen::Index(i)) << w, w * u, w * u * u, w * u * u * u;
+    y(Eigen::Index(i)) = w * 100.0 * found[std::size_t(bins[i])] / total[std::size_t(bins[i])];
+  }
+  return Eigen::Vector4d(A.colPivHouseholderQr().solve(y));
+}
+
 /// Writes summary.csv (the means over the scenes of each combination; time per object pooled)
-/// and recognition.csv (recognition rate in 10 % bins of visible surface); the sums by combination.
-std::map<std::vector<double>, Sum> writeSummaries(const std::string& out, const std::vector<SweepRow>& rows,
+/// and recognition.csv (recognition rate in 10 % bins of visible surface).
+Summaries writeSummaries(const std::string& out, const std::vector<SweepRow>& rows,
                                                   const std::vector<std::string>& names) {
   // summary.csv: means over the scenes of each combination (time per object pooled).
   std::map<std::vector<double>, Sum> sums;
@@ -167,7 +193,7 @@ std::map<std::vector<double>, Sum> writeSummaries(const std::string& out, const 
       recognition << fmt::format("{},{},{},{:.2f}\n", 10 * b + 5, bin_total[b], bin_found[b], 100.0 * bin_found[b] / bin_total[b]);
   summary.close();
   recognition.close();
-  return sums;
+  return {std::move(sums), recognitionFit(bin_total, bin_found)};
 }
 
 }  // namespace
@@ -175,7 +201,8 @@ std::map<std::vector<double>, Sum> writeSummaries(const std::string& out, const 
 std::vector<std::string> plotSweep(const std::string& out, const std::vector<SweepRow>& rows,
                                    const std::vector<std::string>& names) {
   if (names.empty() || rows.empty()) return {};
-  const std::map<std::vector<double>, Sum> sums = writeSummaries(out, rows, names);
+  const Summaries summaries = writeSummaries(out, rows, names);
+  const std::map<std::vector<double>, Sum>& sums = summaries.sums;
 
   // plots.gp: each metric against the first parameter, one curve per value of the second.
   std::ofstream gp(out + "/plots.gp");
@@ -217,8 +244,12 @@ std::vector<std::string> plotSweep(const std::string& out, const std::vector<Swe
   const std::string png = fmt::format("{}/recognition_vs_visible_surface.png", out);
   gp << fmt::format("set output '{}'\nset xlabel 'visible surface (% of the whole surface)'\nset ylabel 'recognition rate (%)'\n"
                     "set title 'recognition rate against visible surface (all runs)'\nset yrange [0:105]\n"
-                    "set datafile separator ','\nplot '{}/recognition.csv' skip 1 using 1:4 with linespoints title 'recognised'\n",
+                    "set datafile separator ','\nplot '{}/recognition.csv' skip 1 using 1:4 with linespoints title 'recognised'",
                     png, out);
+  if (summaries.fit)  // the thesis's polynomial fit (Figures 34 and 38), in u = visible % / 100
+    gp << fmt::format(", ({}) + ({})*(x/100) + ({})*(x/100)**2 + ({})*(x/100)**3 title 'third-order fit'", (*summaries.fit)[0],
+                      (*summaries.fit)[1], (*summaries.fit)[2], (*summaries.fit)[3]);
+  gp << "\n";
   pngs.push_back(png);
   gp.close();
   if (std::system("command -v gnuplot > /dev/null 2>&1") != 0) return {};
