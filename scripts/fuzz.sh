@@ -2,7 +2,8 @@
 # Fuzzes binpose's readers with libFuzzer (clang, ASan + UBSan with float-cast-overflow).
 #   scripts/fuzz.sh [SECONDS per harness, default 60] [HARNESS ...]   (ply pcd depth mesh bpdb)
 # Builds tests/fuzz into build-fuzz, seeds a working corpus per harness from tests/fuzz/corpus
-# and the heads of ../shared/data's real files, then runs the harnesses two at a time. A crash,
+# and the heads of ../shared/data's real files, then runs the harnesses FUZZ_JOBS at a time
+# (default 2; the test command runs all five side by side). A crash,
 # leak, timeout (> 10 s) or out-of-memory (> 2 GB) fails the script; libFuzzer writes the input
 # to build-fuzz/findings/. Needs clang and libclang-rt-14-dev (scripts/deps.sh --fuzz).
 set -euo pipefail
@@ -48,7 +49,7 @@ pids=()
 for h in "${harnesses[@]}"; do
   run "$h" &
   pids+=($!)
-  if [ ${#pids[@]} -ge 2 ]; then wait "${pids[0]}" || status=1; pids=("${pids[@]:1}"); fi
+  if [ ${#pids[@]} -ge "${FUZZ_JOBS:-2}" ]; then wait "${pids[0]}" || status=1; pids=("${pids[@]:1}"); fi
 done
 for p in "${pids[@]}"; do wait "$p" || status=1; done
 for h in "${harnesses[@]}"; do
