@@ -31,10 +31,6 @@ constexpr float kTargetVisibility = 0.1f;
 
 btVector3 toBt(const Vec3& v) { return btVector3(v.x() * kMetres, v.y() * kMetres, v.z() * kMetres); }
 
-float gaussian(Rng& rng) {
-  return static_cast<float>(std::sqrt(-2.0 * std::log(1.0 - rng.uniform())) * std::cos(2.0 * M_PI * rng.uniform()));
-}
-
 /// The bin's floor and walls as boxes (centre, size) in the world frame; walls `height` tall and
 /// `w` thick, growing outwards.
 std::vector<std::pair<Vec3, Vec3>> binBoxes(const BinParams& bin, float height, float w) {
@@ -208,7 +204,7 @@ float idealPixel(const RayScene& rays, const SensorParams& sensor, std::uint64_t
   Rng rng(seed * 0x9E3779B97F4A7C15ull + pixel);  // per pixel: same image whatever the threads
   const float z = hit.t;  // dir.z = 1, so t is the depth
   geometry = hit.geometry;
-  return z + sensor.noise_sigma * (z / 500.0f) * (z / 500.0f) * gaussian(rng);
+  return z + sensor.noise_sigma * (z / 500.0f) * (z / 500.0f) * rng.gaussian();
 }
 
 /// A modelled sensor's depth at pixel (u, v), mm (0: none; sensor_model.hpp): the ray jittered
@@ -219,7 +215,7 @@ float modelledPixel(const RayScene& rays, const SensorParams& sensor, std::uint6
   const SensorModel& m = sensor.model;
   const std::size_t pixel = static_cast<std::size_t>(v) * sensor.width + u;
   Rng rng(seed * 0x9E3779B97F4A7C15ull + pixel);
-  const double du = m.lateral_px * gaussian(rng), dv = m.lateral_px * gaussian(rng);
+  const double du = m.lateral_px * rng.gaussian(), dv = m.lateral_px * rng.gaussian();
   const SensorRay ray = castThrough(rays, sensor, u + du, v + dv);
   if (!ray.seen(cos_grazing)) return 0.0f;
   const RayScene::Hit& hit = ray.hit;
@@ -232,7 +228,7 @@ float modelledPixel(const RayScene& rays, const SensorParams& sensor, std::uint6
   }
   const float theta = std::acos(std::min(1.0f, ray.cosIncidence()));
   geometry = hit.geometry;
-  return quantisedDepth(m, z + axialSigma(m, z, theta) * gaussian(rng), sensor.fx);
+  return quantisedDepth(m, z + axialSigma(m, z, theta) * rng.gaussian(), sensor.fx);
 }
 
 }  // namespace
@@ -275,7 +271,7 @@ std::vector<Pose> dropIntoBin(const Mesh& mesh, int count, const BinParams& bin,
   const int nx = std::max(1, static_cast<int>(bin.inner.x() / cell)), ny = std::max(1, static_cast<int>(bin.inner.y() / cell));
   std::vector<btRigidBody*> parts;
   for (int i = 0; i < count; ++i) {
-    const Eigen::Quaternionf q = Eigen::Quaternionf(gaussian(rng), gaussian(rng), gaussian(rng), gaussian(rng)).normalized();
+    const Eigen::Quaternionf q = rng.rotation();
     const int slot = i % (nx * ny), layer = i / (nx * ny);
     const float jitter = 0.05f * radius;
     const Vec3 at(cell * (float(slot % nx) - 0.5f * float(nx - 1)) + float(rng.uniform() - 0.5) * jitter,

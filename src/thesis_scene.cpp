@@ -19,15 +19,6 @@ constexpr float kCellAtDistance = 1.0f;
 /// A point this far behind the nearest one in its cell is hidden (mm).
 constexpr float kHiddenBehind = 1.0f;
 
-float gaussian(Rng& rng) {
-  return static_cast<float>(std::sqrt(-2.0 * std::log(1.0 - rng.uniform())) * std::cos(2.0 * M_PI * rng.uniform()));
-}
-
-/// A rotation uniform over SO(3) (a normalised 4D Gaussian quaternion).
-Eigen::Matrix3f randomRotation(Rng& rng) {
-  return Eigen::Quaternionf(gaussian(rng), gaussian(rng), gaussian(rng), gaussian(rng)).normalized().toRotationMatrix();
-}
-
 /// The points of `points` (with outward `normals`) the viewer at the origin sees: facing it,
 /// and nearest in their cell of an angular z-buffer.
 std::vector<std::uint32_t> seenFromOrigin(const Points& points, const Points& normals, float cell) {
@@ -77,7 +68,7 @@ SimulatedScene simulateThesisScene(const Mesh& mesh, const ThesisSceneParams& p)
   scene.camera_from_world = Pose::Identity();
   for (int i = 0; i < p.instances; ++i) {
     Pose pose = Pose::Identity();
-    pose.linear() = randomRotation(rng);
+    pose.linear() = rng.rotation().toRotationMatrix();
     pose.translation() = Vec3(step * (float(i % side) - 0.5f * float(side - 1)), step * (float(i / side) - 0.5f * float(side - 1)), p.distance);
     Points points, normals;
     for (const SurfacePoint& s : sampleSurfaceUniform(mesh, per_copy, p.seed * 1000003u + std::uint64_t(i))) {
@@ -89,7 +80,7 @@ SimulatedScene simulateThesisScene(const Mesh& mesh, const ThesisSceneParams& p)
     const auto kept = occluded(points, seen, kept_share, rng);
     for (const auto k : kept) {
       const Vec3 ray = points[k].normalized();
-      scene.cloud.points.push_back(points[k] + ray * (p.noise_sigma * gaussian(rng)));
+      scene.cloud.points.push_back(points[k] + ray * (p.noise_sigma * rng.gaussian()));
     }
     SimulatedInstance inst;
     inst.pose = pose;

@@ -2,6 +2,7 @@
 // Small geometric helpers and the project's deterministic random generator.
 #include <binpose/types.hpp>
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -24,6 +25,10 @@ class Rng {
   double uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }
   /// Uniform integer in [0, n).
   std::uint64_t below(std::uint64_t n) { return static_cast<std::uint64_t>(uniform() * static_cast<double>(n)); }
+  /// Standard normal (Box-Muller, from two uniforms).
+  float gaussian() { return static_cast<float>(std::sqrt(-2.0 * std::log(1.0 - uniform())) * std::cos(2.0 * M_PI * uniform())); }
+  /// A rotation uniform over SO(3): a normalised quaternion of four standard normals.
+  Eigen::Quaternionf rotation() { return Eigen::Quaternionf(gaussian(), gaussian(), gaussian(), gaussian()).normalized(); }
 
  private:
   std::uint64_t state_;
