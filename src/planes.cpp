@@ -7,6 +7,7 @@
 
 #include "oriented_lanes.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <numeric>
 #include <fmt/format.h>
@@ -230,6 +231,21 @@ std::size_t pointsBehind(const Points& points, std::span<const std::uint32_t> in
   return behind;
 }
 
+/// Floor and walls meet at right angles; drafted walls and a tilted scan within this.
+constexpr float kSquareDegrees = 15.0f;
+
+/// Whether a background plane can be a surface of the bin or the table, given the first one
+/// kept (the largest): parallel, opposite or at right angles to it. A tilted plane that passes
+/// the points-behind test is a face of a part, or the faces of several lying side by side,
+/// that happen to hide little: as background it would hide that part from the votes and take
+/// its support away in verification.
+bool squareToFirst(const Plane& plane, const std::vector<Plane>& kept) {
+  if (kept.empty()) return true;
+  const float c = std::abs(plane.normal.dot(kept.front().normal));
+  const float square = std::sin(kSquareDegrees * float(M_PI) / 180.0f);
+  return c <= square || c >= std::sqrt(1.0f - square * square);
+}
+
 }  // namespace
 
 std::vector<char> largePlanes(const Points& points, const Points& normals, float density, const PlaneParams& params,
@@ -262,6 +278,7 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
   struct Background {
     Plane plane;
     std::vector<std::uint32_t> inliers;
+    std::vector<std::vector<std::uint32_t>> patches;  ///< its connected patches of min_count points or more
   };
   std::vector<Background> background;
   background.reserve(static_cast<std::size_t>(std::max(0, params.max_planes)));  // no move under a running task
@@ -296,18 +313,21 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
       continue;  // not background
     // The farthest surface, the bin's floor or a table: background for verification even where
     // what the parts leave of it is in pieces each smaller than min_count (those stay in the votes).
-    Background* b = &background.emplace_back(Background{best, inliers});
+    Background* b = &background.emplace_back(Background{best, inliers, {}});
     flood.run([&, b] {
-      for (const auto& patch : detail::linkedPatches(points, b->inliers, params.link, b->plane.normal))
-        if (patch.size() >= min_count) {
-          for (const auto i : patch) plane[i] = 1;
-        }
+      for (auto& patch : detail::linkedPatches(points, b->inliers, params.link, b->plane.normal))
+        if (patch.size() >= min_count) b->patches.push_back(std::move(patch));
     });
   }
   flood.wait();
-  if (removed)
-    for (const Background& b : background)
-      removed->push_back(b.plane);
+  std::vector<Plane> kept;
+  for (const Background& b : background) {
+    if (!squareToFirst(b.plane, kept)) continue;  // its points stay in the votes
+    kept.push_back(b.plane);
+    for (const auto& patch : b.patches)
+      for (const auto i : patch) plane[i] = 1;
+  }
+  if (removed) removed->insert(removed->end(), kept.begin(), kept.end());
   return plane;
 }
 

@@ -80,6 +80,36 @@ TEST(Planes, ASmallFlatTopAloneStays) {
   EXPECT_EQ(std::count(flat.begin(), flat.end(), 1), 0) << "a 1600 mm^2 top is below min_area";
 }
 
+TEST(Planes, ATiltedFaceThatHidesNothingStays) {
+  // A floor at z = 500 and a 100 x 100 mm plate tilted 40 degrees above it (a part's large
+  // face), the floor points under the plate (along its normal) left out: nothing lies behind
+  // the plate within its extent, so only its tilt tells it from the bin.
+  const float tilt = 40.0f * float(M_PI) / 180.0f;
+  const Vec3 centre(0, 0, 440), n(0, std::sin(tilt), -std::cos(tilt)), u = Vec3::UnitX(), v = n.cross(u);
+  Bin bin;
+  Rng rng(5);
+  for (float a = -50; a <= 50; a += kSpacing)
+    for (float b = -50; b <= 50; b += kSpacing) bin.add(centre + a * u + b * v, n, 2, rng);
+  for (float x = -150; x <= 150; x += kSpacing)
+    for (float y = -150; y <= 150; y += kSpacing) {
+      const Vec3 p(x, y, 500);
+      if (std::abs(u.dot(p - centre)) <= 52 && std::abs(v.dot(p - centre)) <= 52) continue;  // under the plate
+      bin.add(p, Vec3(0, 0, -1), 0, rng);
+    }
+  std::vector<Plane> background;
+  const std::vector<char> flat = largePlanes(bin.points, bin.normals, 1.0f / (kSpacing * kSpacing), PlaneParams{}, &background);
+  int count[3] = {0, 0, 0}, removed[3] = {0, 0, 0};
+  for (std::size_t i = 0; i < flat.size(); ++i) {
+    ++count[bin.kind[i]];
+    removed[bin.kind[i]] += flat[i];
+  }
+  EXPECT_GT(count[2] * kSpacing * kSpacing, PlaneParams{}.min_area) << "the plate is larger than min_area";
+  EXPECT_GE(removed[0], 0.99 * count[0]) << "floor";
+  EXPECT_EQ(removed[2], 0) << "tilted plate";
+  ASSERT_EQ(background.size(), 1u);
+  EXPECT_GT(std::abs(background[0].normal.z()), 0.999f);
+}
+
 TEST(Planes, SameResultForTheSameSeed) {
   const Bin bin = makeBin();
   const float density = 1.0f / (kSpacing * kSpacing);
