@@ -495,7 +495,7 @@ std::optional<ZBuffer> selfOcclusion(const std::vector<Facing>& facing, float mo
   return front;
 }
 
-enum Verdict : std::uint8_t { kHidden, kSupported, kContradicted, kUnknown };
+enum Verdict : std::uint8_t { kHidden, kSupported, kContradicted, kOccluded, kOnBackground, kUnknown };
 
 /// The counts of the verdicts, in order; the supporting scan points into `support` when given.
 Evidence tally(const std::vector<Facing>& facing, const std::vector<Verdict>& verdict, const std::vector<std::uint32_t>& nearest,
@@ -506,6 +506,8 @@ Evidence tally(const std::vector<Facing>& facing, const std::vector<Verdict>& ve
     ++e.facing;
     e.supported += verdict[i] == kSupported;
     e.contradicted += verdict[i] == kContradicted;
+    e.occluded += verdict[i] == kOccluded;
+    e.on_background += verdict[i] == kOnBackground;
     if (facing[i].grazing) {
       ++e.grazing;
       e.grazing_supported += verdict[i] == kSupported;
@@ -540,7 +542,7 @@ Evidence SceneEvidence::evaluate(const Pose& pose, const PreparedModel& model, f
       if (support != nullptr ? binpose::nearest(grid_, pixels_, f.p, tolerance, nearest[i], d2) : grid_.anyWithin(f.p, tolerance)) {
         const bool on_bin = std::any_of(background_.begin(), background_.end(),
                                         [&](const Plane& b) { return b.distance(f.p) <= background_tolerance_; });
-        if (!on_bin) verdict[i] = kSupported;
+        verdict[i] = on_bin ? kOnBackground : kSupported;
         continue;
       }
       const long c = cellAt(f.u, f.v);
@@ -548,6 +550,8 @@ Evidence SceneEvidence::evaluate(const Pose& pose, const PreparedModel& model, f
       // Free space seen through the point, or the point inside the floor or a wall the scan shows.
       if (nearest_[c] > f.range + 2 * tolerance || insideBackground(f.p, f.range, nearest_[c], tolerance))
         verdict[i] = kContradicted;
+      else if (nearest_[c] < f.range - 2 * tolerance)
+        verdict[i] = kOccluded;  // the scan sees something clearly in front of it
     }
   });
   return tally(facing, verdict, nearest, support);

@@ -52,6 +52,9 @@ struct StageSettings : DetectionParams {
 
   // --- verification: pre-screen, ICP, score ---------------------------------------------------
   float verify_tolerance = 1.0f;  ///< a scan point within this supports a model point, mm
+  /// A detection's facing points that nothing in the scan hides must be supported at least this
+  /// share (Evidence::visibleSupport; 0: no test).
+  float min_visible_support = 0.4f;
   bool prescreen = true;          ///< drop a pose scoring under min_score at the ICP gate before ICP
   int prescreen_retry_steps = 2;  ///< coarse ICP steps for a pose just short of the pre-screen (0: none)
   float prescreen_retry_share = 0.33f;  ///< ... when it scores at least this share of min_score

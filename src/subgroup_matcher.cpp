@@ -21,6 +21,7 @@ void reset(GroupOutcome& out, bool all_voters) {
   out.largest_clique = 0;
   out.hypothesis = {};
   out.score_without_grazing = 0;
+  out.visible_support = 0;
   out.vote_ms = out.match_ms = out.refine_ms = 0;
 }
 
@@ -51,6 +52,7 @@ bool Matcher::prepare(std::span<const std::uint32_t> group, const std::vector<ch
     out.screened_out = earlier->screened_out;
     out.hypothesis = earlier->hypothesis;
     out.score_without_grazing = earlier->score_without_grazing;
+    out.visible_support = earlier->visible_support;
     out.path = earlier->path;
     out.refound = earlier->refound;
     return false;
@@ -166,6 +168,7 @@ void Matcher::screenRefineScore(Slot& s) const {
   const Evidence e = evidence.evaluate(det.pose, scored_model, p.verify_tolerance, db.model().sample_radius, &h.support);
   det.score = e.score();
   s.outcome.score_without_grazing = e.scoreWithoutGrazing();
+  s.outcome.visible_support = e.visibleSupport();
   std::sort(h.support.begin(), h.support.end());
   h.support.erase(std::unique(h.support.begin(), h.support.end()), h.support.end());
 }

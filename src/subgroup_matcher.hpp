@@ -33,6 +33,7 @@ struct GroupOutcome {
   int largest_clique = 0;                           ///< size of the first clique searched (0: none searched)
   Hypothesis hypothesis;                            ///< refined and scored (when the clique gave a pose that passed)
   float score_without_grazing = 0;                  ///< the hypothesis's (Evidence::scoreWithoutGrazing)
+  float visible_support = 0;                        ///< the hypothesis's (Evidence::visibleSupport)
   double vote_ms = 0, match_ms = 0, refine_ms = 0;  ///< the thread's time in each stage
 };
 

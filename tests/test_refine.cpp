@@ -95,6 +95,37 @@ TEST(Evidence, TheBinsPlanesDoNotSupportAPart) {
   EXPECT_GT(score({Plane{Vec3::UnitX(), 300.0f}}), 0.8f);
 }
 
+// The share of what the scan should show that it supports: high for a right pose two thirds
+// hidden behind a plate (its score is low), low for a pose mostly beyond the scan's edge that
+// meets the scan only in its last sixth (its score would pass min_score).
+TEST(Evidence, VisibleSupportTellsAHiddenPartFromAPassingPose) {
+  const OrientedModel box = prepareModel(builtinPart("box"), ModelParams{});  // 60 x 40 x 20, centred
+  Pose hidden = Pose::Identity();  // near face z = 490, x in [-30, 30], y in [-20, 20]
+  hidden.translation() = Vec3(0, 0, 500);
+  PointCloud scan;
+  for (float x = -59.75f; x < 60; x += 0.5f)
+    for (float y = -39.75f; y < 40; y += 0.5f) {
+      if (x < 10) scan.points.emplace_back(x * 0.8f, y * 0.8f, 400.0f);  // a plate in front, hiding x < 10
+      else if (x <= 30 && std::abs(y) <= 20) scan.points.emplace_back(x, y, 490.0f);  // the box's face it leaves
+    }
+  const PointGrid grid(scan.points);
+  const SceneEvidence evidence(scan.points, grid, Vec3::Zero());
+  const Evidence behind = evidence.evaluate(hidden, box.points, box.normals, 1.0f, box.sample_radius);
+  EXPECT_LT(behind.score(), 0.45f);
+  EXPECT_GT(behind.visibleSupport(), 0.9f);
+
+  PointCloud edge;  // a surface z = 490 that the scan shows up to x = 0 only
+  for (float x = -99.75f; x < 0; x += 0.5f)
+    for (float y = -39.75f; y < 40; y += 0.5f) edge.points.emplace_back(x, y, 490.0f);
+  const PointGrid edge_grid(edge.points);
+  const SceneEvidence at_edge(edge.points, edge_grid, Vec3::Zero());
+  Pose passing = hidden;  // x in [-10, 50]: a sixth of its face on the scan
+  passing.translation().x() = 20;
+  const Evidence outside = at_edge.evaluate(passing, box.points, box.normals, 1.0f, box.sample_radius);
+  EXPECT_GT(outside.score(), 0.15f);
+  EXPECT_LT(outside.visibleSupport(), 0.3f);
+}
+
 // A box standing beside the line of sight, as a sensor sees it: its near face only, and the
 // floor far behind where the box does not hide it. Two of its side faces face the sensor, but
 // at 82-84 degrees, nearly edge-on: a sensor drops such surface, so that they are neither seen

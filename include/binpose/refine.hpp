@@ -80,12 +80,22 @@ struct Evidence {
   int facing = 0;      ///< model points facing the sensor and not hidden by the part itself
   int supported = 0;   ///< ... with a scan point within the tolerance
   int contradicted = 0;  ///< ... where the scan sees a surface clearly behind them (free space)
+  int occluded = 0;      ///< ... where the scan sees a surface clearly in front of them
+  int on_background = 0; ///< ... on a background plane the scan shows there (not supported)
   /// Of the counts above, those of points seen at more than the grazing angle
   /// (SceneEvidence::setGrazingAngle; none without one).
   int grazing = 0, grazing_supported = 0, grazing_contradicted = 0;
   /// (supported - contradicted) / facing, in [0, 1]: near 1 for a fully visible, correct pose.
   [[nodiscard]] float score() const {
     return facing == 0 ? 0.0f : std::max(0.0f, float(supported - contradicted) / float(facing));
+  }
+  /// The share of the facing points that the scan should show where the pose is right (not
+  /// occluded, not on a background plane, where the scan cannot tell part from bin) that it
+  /// supports: near the sensor's support rate for a right pose however much of it is hidden,
+  /// low for a pose that the scan meets only in passing.
+  [[nodiscard]] float visibleSupport() const {
+    const int expected = facing - occluded - on_background;
+    return expected <= 0 ? 0.0f : static_cast<float>(supported) / static_cast<float>(expected);
   }
   /// The score of the points seen at the grazing angle or less: a sensor drops surface seen
   /// nearly edge-on (the side walls of a part lying flat), which the score counts as missing.
