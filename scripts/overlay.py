@@ -57,7 +57,7 @@ def main():
         u, v = project(model, d.pose, camera)
         colour = COLOURS[(rank - 1) % len(COLOURS)]
         ax.scatter(u, v, s=1, color=colour, alpha=0.35, linewidths=0)
-        cu, cv = project(np.zeros((1, 3)) + model.mean(axis=0), d.pose, camera)
+        cu, cv = project(model.mean(axis=0, keepdims=True), d.pose, camera)
         ax.text(cu[0], cv[0], f"{rank}: {d.score:.2f}", color="white", fontsize=9, ha="center", va="center",
                 bbox=dict(facecolor=colour, alpha=0.8, pad=1, linewidth=0))
     ax.text(5, 15, f"{len(result)} detections, {result.timing_ms['total']:.0f} ms", color="yellow", fontsize=10)

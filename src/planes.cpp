@@ -241,9 +241,8 @@ constexpr float kSquareDegrees = 15.0f;
 /// its support away in verification.
 bool squareToFirst(const Plane& plane, const std::vector<Plane>& kept) {
   if (kept.empty()) return true;
-  const float c = std::abs(plane.normal.dot(kept.front().normal));
-  const float square = std::sin(kSquareDegrees * float(M_PI) / 180.0f);
-  return c <= square || c >= std::sqrt(1.0f - square * square);
+  const float c = std::abs(plane.normal.dot(kept.front().normal)), off = kSquareDegrees * float(M_PI) / 180.0f;
+  return c <= std::sin(off) || c >= std::cos(off);
 }
 
 }  // namespace

@@ -20,8 +20,7 @@ void reset(GroupOutcome& out, bool all_voters) {
   out.all_voters = all_voters;
   out.largest_clique = 0;
   out.hypothesis = {};
-  out.score_without_grazing = 0;
-  out.visible_support = 0;
+  out.evidence = {};
   out.vote_ms = out.match_ms = out.refine_ms = 0;
 }
 
@@ -51,8 +50,7 @@ bool Matcher::prepare(std::span<const std::uint32_t> group, const std::vector<ch
   if (earlier != nullptr && !earlier->pending && earlier->clique == out.clique) {
     out.screened_out = earlier->screened_out;
     out.hypothesis = earlier->hypothesis;
-    out.score_without_grazing = earlier->score_without_grazing;
-    out.visible_support = earlier->visible_support;
+    out.evidence = earlier->evidence;
     out.path = earlier->path;
     out.refound = earlier->refound;
     return false;
@@ -165,10 +163,8 @@ void Matcher::screenRefineScore(Slot& s) const {
       return;
     }
   }
-  const Evidence e = evidence.evaluate(det.pose, scored_model, p.verify_tolerance, db.model().sample_radius, &h.support);
-  det.score = e.score();
-  s.outcome.score_without_grazing = e.scoreWithoutGrazing();
-  s.outcome.visible_support = e.visibleSupport();
+  s.outcome.evidence = evidence.evaluate(det.pose, scored_model, p.verify_tolerance, db.model().sample_radius, &h.support);
+  det.score = s.outcome.evidence.score();
   std::sort(h.support.begin(), h.support.end());
   h.support.erase(std::unique(h.support.begin(), h.support.end()), h.support.end());
 }

@@ -32,8 +32,7 @@ struct GroupOutcome {
   bool all_voters = false;                          ///< every member's candidates taken, not only the voters'
   int largest_clique = 0;                           ///< size of the first clique searched (0: none searched)
   Hypothesis hypothesis;                            ///< refined and scored (when the clique gave a pose that passed)
-  float score_without_grazing = 0;                  ///< the hypothesis's (Evidence::scoreWithoutGrazing)
-  float visible_support = 0;                        ///< the hypothesis's (Evidence::visibleSupport)
+  Evidence evidence;                                ///< the hypothesis's counts (its score, without grazing, visible support)
   double vote_ms = 0, match_ms = 0, refine_ms = 0;  ///< the thread's time in each stage
 };
 

@@ -155,8 +155,7 @@ std::optional<Eigen::Vector4d> recognitionFit(const std::vector<int>& total, con
 
 /// Writes summary.csv (the means over the scenes of each combination; time per object pooled)
 /// and recognition.csv (recognition rate in 10 % bins of visible surface).
-Summaries writeSummaries(const std::string& out, const std::vector<SweepRow>& rows,
-                                                  const std::vector<std::string>& names) {
+Summaries writeSummaries(const std::string& out, const std::vector<SweepRow>& rows, const std::vector<std::string>& names) {
   // summary.csv: means over the scenes of each combination (time per object pooled).
   std::map<std::vector<double>, Sum> sums;
   std::vector<int> bin_total(10, 0), bin_found(10, 0);

@@ -51,8 +51,8 @@ struct LateNormals {
 /// layer of parts lying flat, touching one another, have the floor behind them and stay, and
 /// coplanar faces of parts that do not touch stay. So does a plane tilted (by more than 15
 /// degrees) from square to the first background plane: a bin's floor and walls meet at right
-/// angles, and a tilted face that hides little is a part's. Normals face the sensor. Returns one flag per
-/// point: 1 on a removed plane; `removed`, when given, receives every background plane found
+/// angles, and a tilted face that hides little is a part's. Normals face the sensor. Returns one
+/// flag per point: 1 on a removed plane; `removed`, when given, receives every background plane found
 /// (with at least min_area of inliers in all, even where no one patch is that large).
 /// Deterministic for a given seed. With `late`, only the normals the search needs are computed
 /// (its hypotheses', its probes', the points near a plane whose angle the fit cannot settle):
