@@ -80,14 +80,13 @@ Points orientedNormals(const PointCloud& scan, const StageSettings& p, PreparedS
   std::vector<std::uint32_t> deferred;
   Points normals;
   std::atomic<const PointGrid*> grid_ready{nullptr};  // the pixels' misses go to the grid once it is built
-  // The noise is measured before the normals, whose k depends on it: through the pixels in a
-  // depth image, else through the grid once it is built.
-  // Only a depth image's values are adapted: its neighbourhoods are the sensor's pixels. In an
-  // unorganized cloud (merged or resampled views, a world frame) the residuals mix the noise
-  // with the sampling's structure; its noise is measured and reported, the values kept.
-  const auto measure = [&](const NeighbourQuery& query, bool adapt) {
+  // The noise is measured before the normals, whose k depends on it, and the values that depend
+  // on it are adapted: through the pixels in a depth image, else through the grid once it is
+  // built. A single view saved as an unorganized file (a PLY from the sensor's software) is as
+  // noisy as its depth image; a clean or resampled scan reads low and keeps the defaults.
+  const auto measure = [&](const NeighbourQuery& query) {
     out.noise = estimateNoise(scan.points, chosen, query);
-    out.params = adapt && p.adapt_to_noise ? adaptedToNoise(p, out.noise) : p;
+    out.params = p.adapt_to_noise ? adaptedToNoise(p, out.noise) : p;
   };
   const auto normalsFor = [&] {
     normals = pixelNormals(*out.pixels, scan.points, chosen, out.params.k_normals, p.viewpoint, deferred, &grid_ready, late);
@@ -101,14 +100,14 @@ Points orientedNormals(const PointCloud& scan, const StageSettings& p, PreparedS
         measure([&](std::uint32_t i, std::size_t k, std::uint32_t* idx) {
           float d2[kMaxNoiseQuery];
           return k <= kMaxNoiseQuery && out.pixels->knn(i, k, idx, d2) ? k : std::size_t{0};
-        }, true);
+        });
         normalsFor();
       });
   if (!out.pixels->usable()) {  // an unorganized scan: the grid answers every search
     measure([&](std::uint32_t i, std::size_t k, std::uint32_t* idx) {
       float d2[kMaxNoiseQuery];
       return k <= kMaxNoiseQuery ? out.grid->knn(scan.points[i], k, idx, d2) : std::size_t{0};
-    }, false);
+    });
     normalsFor();
   }
   finishNormals(*out.grid, scan.points, chosen, deferred, out.params.k_normals, p.viewpoint, normals, late);
