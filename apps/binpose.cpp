@@ -11,6 +11,7 @@
 #include <binpose/simulation.hpp>
 #include <binpose/sweep.hpp>
 #include <binpose/thesis_scene.hpp>
+#include <binpose/viewpoint.hpp>
 
 #include <CLI/CLI.hpp>
 #include <tbb/global_control.h>
@@ -128,7 +129,7 @@ void addDetect(CLI::App& app, DetectOptions& o) {
   d->add_option("--symmetry", o.symmetry, "Match a symmetric part by its symmetry on/off (true|false)");
   d->add_option("--verify", o.verify, "Verification score and rejection on/off (true|false)");
   d->add_option("--min-score", o.min_score, "Smallest accepted verification score in [0, 1]");
-  d->add_option("--viewpoint", o.viewpoint, "Sensor origin x y z in the scan frame, mm (default: the file's, else 0 0 0)")->expected(3);
+  d->add_option("--viewpoint", o.viewpoint, "Sensor origin x y z in the scan frame, mm (default: the file's; else the origin, or a guess from the scan when the origin cannot have seen it)")->expected(3);
   d->add_option("--seed", o.seed, "Seed of the random sub-sampling");
   d->add_option("--threads", o.threads, "Worker threads (0: all cores); the detections are the same whatever the count")
       ->check(CLI::Range(0, 1024))->capture_default_str();
@@ -140,6 +141,16 @@ binpose::DetectionParams detectParams(const DetectOptions& o, float diameter, co
     fmt::print(stderr, "note: --preset fast is now the default preset; the name 'fast' will be removed in a later release\n");
   binpose::DetectionParams p = binpose::scaledToModel(binpose::presetByName(o.preset), diameter);
   p.viewpoint = scan.viewpoint;
+  if (!scan.has_viewpoint && o.viewpoint.empty()) {
+    const binpose::ViewpointGuess g = binpose::guessViewpoint(scan.points, scan.viewpoint);
+    if (g.moved) {
+      fmt::print(stderr,
+                 "note: the scan gives no viewpoint and its origin cannot see {:.0f} % of it; using ({:.1f}, {:.1f}, {:.1f}) mm, "
+                 "which hides {:.0f} % (--viewpoint sets it)\n",
+                 100 * g.assumed_hidden, g.viewpoint.x(), g.viewpoint.y(), g.viewpoint.z(), 100 * g.hidden);
+      p.viewpoint = g.viewpoint;
+    }
+  }
   if (!o.params_file.empty()) binpose::applyJsonFile(p, o.params_file);
   if (o.r) p.r = *o.r;
   if (o.rho_sub) p.rho_sub = *o.rho_sub;

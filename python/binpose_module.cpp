@@ -7,6 +7,7 @@
 #include <binpose/model_database.hpp>
 #include <binpose/params.hpp>
 #include <binpose/shapes.hpp>
+#include <binpose/viewpoint.hpp>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -274,6 +275,27 @@ PYBIND11_MODULE(binpose, m) {
       .def_readonly("noise_mm", &PyResult::noise_mm, "the scan's noise measured on it, mm (1 sigma)")
       .def_readonly("scene_points", &PyResult::scene_points);
 
+  m.def(
+      "guess_viewpoint",
+      [](const py::object& points) {
+        Points scan = pointsOf(points, "points");
+        std::erase_if(scan, [](const Vec3& p) { return !p.allFinite(); });
+        ViewpointGuess g;
+        {
+          py::gil_scoped_release released;
+          g = guessViewpoint(scan);
+        }
+        py::dict out;
+        out["viewpoint"] = py::make_tuple(g.viewpoint.x(), g.viewpoint.y(), g.viewpoint.z());
+        out["moved"] = g.moved;
+        out["hidden"] = g.hidden;
+        out["origin_hidden"] = g.assumed_hidden;
+        return out;
+      },
+      py::arg("points"),
+      "The sensor origin of a scan (N x 3, mm) that does not give it: the origin when it can have seen the scan, "
+      "else a guess from the scan (z up). A dict: viewpoint (x, y, z) mm, moved, hidden and origin_hidden (the share "
+      "of points each cannot see).");
   py::class_<PyDetector>(m, "Detector", "Finds every copy of a database's model in scans.")
       .def(py::init<const Database&, const std::string&, const py::kwargs&>(), py::arg("database"),
            py::arg("preset") = "default",

@@ -128,6 +128,7 @@ PointCloud depthToCloud(const std::vector<std::uint16_t>& depth, int width, int 
   cloud.fy = float(k.fy);
   cloud.cx = float(k.cx);
   cloud.cy = float(k.cy);
+  cloud.has_viewpoint = true;  // the camera frame
   for (int v = 0; v < height; ++v)
     for (int u = 0; u < width; ++u) {
       const std::uint16_t raw = depth[static_cast<std::size_t>(v) * width + u];

@@ -230,6 +230,7 @@ PointCloud readPcd(const std::string& path, double scale) {
 
   PointCloud cloud;
   cloud.viewpoint = h.viewpoint * float(scale);
+  cloud.has_viewpoint = true;  // PCD's VIEWPOINT field, the origin when absent (its specification's default)
   if (h.height > 1) {
     cloud.width = static_cast<int>(h.width);
     cloud.height = static_cast<int>(h.height);

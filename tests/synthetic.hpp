@@ -4,6 +4,7 @@
 // point per pixel (the nearest sample, so self- and mutual occlusion are real), Gaussian noise
 // along the viewing ray.
 #include <binpose/geometry.hpp>
+#include <binpose/model.hpp>
 #include <binpose/pose.hpp>
 #include <binpose/sampling.hpp>
 
@@ -54,6 +55,23 @@ inline Pose randomPose(Rng& rng, const Vec3& position) {
   pose.linear() = q.toRotationMatrix();
   pose.translation() = position;
   return pose;
+}
+
+/// Poses on a 4 x 3 grid, 45 mm apart, over the bin's floor (world frame, mm), each turned by
+/// its own random rotation and raised to lie 1 mm above the floor: copies side by side, some
+/// touching.
+inline std::vector<Pose> gridOfCopies(const OrientedModel& model, int count, std::uint64_t seed) {
+  Rng rng(seed);
+  std::vector<Pose> world;
+  for (int i = 0; i < count; ++i) {
+    const Vec3 at(-67.5f + 45.0f * float(i % 4), -45.0f + 45.0f * float(i / 4), 0.0f);
+    Pose pose = test::randomPose(rng, at);
+    float lowest = INFINITY;
+    for (const Vec3& p : model.points) lowest = std::min(lowest, (pose * p).z());
+    pose.translation().z() += -lowest + 1.0f;
+    world.push_back(pose);
+  }
+  return world;
 }
 
 }  // namespace binpose::test

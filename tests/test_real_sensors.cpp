@@ -18,23 +18,6 @@ namespace {
 
 ModelDatabase databaseOf(const OrientedModel& model) { return ModelDatabase::build(model, defaultQuantization(model.diameter)); }
 
-/// Poses on a 4 x 3 grid, 45 mm apart, over the bin's floor (world frame, mm), each turned by
-/// its own random rotation and raised to lie 1 mm above the floor: copies side by side, some
-/// touching.
-std::vector<Pose> gridOfCopies(const OrientedModel& model, int count, std::uint64_t seed) {
-  Rng rng(seed);
-  std::vector<Pose> world;
-  for (int i = 0; i < count; ++i) {
-    const Vec3 at(-67.5f + 45.0f * float(i % 4), -45.0f + 45.0f * float(i / 4), 0.0f);
-    Pose pose = test::randomPose(rng, at);
-    float lowest = INFINITY;
-    for (const Vec3& p : model.points) lowest = std::min(lowest, (pose * p).z());
-    pose.translation().z() += -lowest + 1.0f;
-    world.push_back(pose);
-  }
-  return world;
-}
-
 }  // namespace
 
 // IPD obj 8 (a thin bracket, 2-fold symmetric) in 12 copies, seen by the structured-light model
@@ -50,7 +33,7 @@ TEST(RealSensors, StructuredLightBinWithoutFalseDetections) {
   SensorParams sensor;
   sensor.distance = 800.0f;
   sensor.model = sensorModel(SensorKind::StructuredLight);
-  const SimulatedScene bin = renderBin(mesh, gridOfCopies(model, 12, 31), BinParams{}, sensor, 31);
+  const SimulatedScene bin = renderBin(mesh, test::gridOfCopies(model, 12, 31), BinParams{}, sensor, 31);
   const EvalModel eval = makeEvalModel(mesh, readSymmetries(test::dataPath("ipd_parts/models/models_info.json"), "8"));
   const DetectionResult result = Detector(db, scaledToModel(defaultPreset(), model.diameter)).detect(bin.cloud);
   EXPECT_GT(result.noise_mm, 0.4f);  // the sensor's noise is seen

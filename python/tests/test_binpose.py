@@ -105,6 +105,32 @@ def test_detect_points_drops_non_finite_rows(caps):
     assert len(detector.detect(np.zeros((0, 3)))) == 0
 
 
+def test_guess_viewpoint_of_a_scan_in_a_world_frame(caps):
+    """The caps' scan in the camera frame keeps its origin; turned into the bin's world frame
+    (z up, the camera 500 mm above the floor) it gets a viewpoint above the bin, and detection
+    from it finds caps where they are."""
+    folder, db, camera, truth, depth = caps
+    rows, cols = np.nonzero(depth)
+    z = depth[rows, cols] * camera["depth_scale"]
+    points = np.stack([(cols - camera["cx"]) * z / camera["fx"], (rows - camera["cy"]) * z / camera["fy"], z], axis=1)
+    kept = binpose.guess_viewpoint(points)
+    assert not kept["moved"] and kept["viewpoint"] == (0.0, 0.0, 0.0) and kept["origin_hidden"] < 0.05
+    camera_from_world = np.array(json.loads((folder / "ground_truth.json").read_text())["camera_from_world"])
+    world_from_camera = np.linalg.inv(camera_from_world)
+    world = points @ world_from_camera[:3, :3].T + world_from_camera[:3, 3]
+    guess = binpose.guess_viewpoint(world)
+    assert guess["moved"] and guess["hidden"] < 0.05 < guess["origin_hidden"]
+    sensor = world_from_camera[:3, 3]
+    centre = world.mean(axis=0)
+    direction = (np.array(guess["viewpoint"]) - centre) / np.linalg.norm(np.array(guess["viewpoint"]) - centre)
+    assert direction @ ((sensor - centre) / np.linalg.norm(sensor - centre)) > np.cos(np.radians(15))
+    result = binpose.Detector(db).detect(world, viewpoint=guess["viewpoint"])
+    assert len(result) >= 3
+    for d in result:
+        in_camera = camera_from_world @ d.pose
+        assert nearest_truth(in_camera, truth)[1] < 3.0
+
+
 def test_bad_input_raises_value_error(tmp_path):
     vertices, faces = box(40.0, 30.0, 20.0)
     db = binpose.train((vertices, faces), points=300)
