@@ -13,6 +13,7 @@
 #include <binpose/planes.hpp>
 
 #include <algorithm>
+#include <fmt/format.h>
 #include <numeric>
 #include <tbb/parallel_invoke.h>
 
@@ -21,6 +22,17 @@ namespace {
 
 /// The near-model grid's cell: the removal distance, and at least the same-place tolerance.
 constexpr float kShapeCellShare = 0.1f;
+/// No scan in millimetres has a point this far from its origin (100 km): such a file is not a
+/// scan in mm, and the grids over it would overflow.
+constexpr float kFarthestCoordinate = 1e8f;
+
+/// Error naming the first point of `scan` beyond kFarthestCoordinate (non-finite ones are skipped).
+void checkCoordinates(const PointCloud& scan) {
+  for (const Vec3& p : scan.points)
+    if (p.allFinite() && p.cwiseAbs().maxCoeff() > kFarthestCoordinate)
+      throw Error(fmt::format("scan point ({:.3g}, {:.3g}, {:.3g}) lies beyond {:.0g} mm of the origin: not a scan in mm", p.x(),
+                              p.y(), p.z(), kFarthestCoordinate));
+}
 
 /// The sub-groups whose largest clique came close to C_n (retry_min_clique) and that still have
 /// C_n points: the second pass runs them with every point voting. One that reached C_n but gave
@@ -101,6 +113,7 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   DetectionResult result;
   result.scene_points = scan.size();
   if (scan.empty()) return result;
+  checkCoordinates(scan);
   PreparedScan prepared;  // 5.2.1-5.2.2: sub-sampled, oriented, the bin's planes apart; the noise measured
   prepareScan(scan, *settings_, prepared);
   const StageSettings& p = prepared.params;  // adapted to the scan's noise

@@ -453,6 +453,21 @@ TEST(Detector, EmptySceneGivesNoDetection) {
   EXPECT_EQ(result.scene_points, 0u);
 }
 
+// Coordinates no scan in millimetres has (a float's extent overflows over them) are refused with
+// one line naming a point, before any grid is built over them.
+TEST(Detector, ScanBeyondAHundredKilometresIsRefused) {
+  REQUIRE_DATA("ipd_parts/models/obj_000000.ply");
+  const Detector detector(ipdDatabase(), scaledToModel(defaultPreset(), ipdDatabase().model().diameter));
+  PointCloud scan;
+  scan.points = {Vec3(-3e38f, 0, 0), Vec3(3e38f, 0, 0), Vec3(0, 3e38f, 1), Vec3(0, 0, 500)};
+  try {
+    (void)detector.detect(scan);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("not a scan in mm"), std::string::npos) << e.what();
+  }
+}
+
 // ---- real scans -------------------------------------------------------------------------------
 
 namespace {
