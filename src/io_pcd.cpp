@@ -230,7 +230,9 @@ PointCloud readPcd(const std::string& path, double scale) {
 
   PointCloud cloud;
   cloud.viewpoint = h.viewpoint * float(scale);
-  cloud.has_viewpoint = true;  // PCD's VIEWPOINT field, the origin when absent (its specification's default)
+  // PCD's VIEWPOINT: the origin is also its default, which PCL keeps when it moves a cloud into
+  // another frame; only another position says where the sensor was.
+  cloud.has_viewpoint = cloud.viewpoint != Vec3::Zero();
   if (h.height > 1) {
     cloud.width = static_cast<int>(h.width);
     cloud.height = static_cast<int>(h.height);

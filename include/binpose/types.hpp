@@ -27,8 +27,9 @@ struct PointCloud {
   int height = 0;
   std::vector<std::int32_t> pixel;
   Vec3 viewpoint = Vec3::Zero();  ///< sensor origin, for orienting normals (PCD VIEWPOINT)
-  /// Whether the file gives the sensor origin (a depth image's camera frame, a PCD's VIEWPOINT);
-  /// false for a PLY or a mesh, whose origin may be anywhere (guessViewpoint in viewpoint.hpp).
+  /// Whether the file gives the sensor origin (a depth image's camera frame, a PCD's VIEWPOINT
+  /// other than its default, the origin); false for a PLY or a mesh, whose origin may be
+  /// anywhere (guessViewpoint in viewpoint.hpp).
   bool has_viewpoint = false;
   /// The pinhole camera's focal lengths in pixels, when each point lies on the ray from the
   /// origin through its pixel (depthToCloud: the camera frame); 0 when not known. Neighbour
