@@ -139,8 +139,6 @@ std::pair<Vec3, float> bestDirection(const Sample& s) {
 
 }  // namespace
 
-float hiddenShare(const Points& points, const Vec3& viewpoint) { return hiddenIn(sampleOf(points), viewpoint); }
-
 ViewpointGuess guessViewpoint(const Points& points, const Vec3& assumed) {
   ViewpointGuess g;
   g.viewpoint = assumed;

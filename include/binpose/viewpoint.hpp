@@ -15,10 +15,7 @@ struct ViewpointGuess {
   float assumed_hidden = 0;  ///< the same share for the assumed origin
 };
 
-/// The share of `points` that `viewpoint` cannot see (ViewpointGuess::hidden), on a sample of
-/// at most a few ten thousand points.
-float hiddenShare(const Points& points, const Vec3& viewpoint);
-
+/// The hidden shares are measured on an even sample of at most 20 000 of the points.
 /// Keeps `assumed` when it sees the scan as a sensor would (at most a few per cent hidden);
 /// otherwise the viewpoint one scan extent away from the scan's centre, in the direction that
 /// hides the fewest points: the best principal axis of the scan, then tilted while that hides
