@@ -161,6 +161,7 @@ class PyDetector {
     params_ = scaledToModel(presetByName(preset), db_->model().diameter);
     applyJson(params_, paramsJson(kwargs), "parameters");
     validate(params_);
+    given_viewpoint_ = params_.viewpoint;
     detector_ = std::make_unique<Detector>(*db_, params_);
   }
 
@@ -203,13 +204,15 @@ class PyDetector {
     if (!scan.normals.empty()) scan.normals.resize(kept);
   }
 
+  /// `viewpoint` None: the detector's own, or for points given without one (not a depth image)
+  /// the origin when it can have seen them, else a guess from them (guessViewpoint), as the CLI.
   PyResult run(const PointCloud& scan, const py::object& viewpoint) {
-    if (!viewpoint.is_none()) {
-      const Vec3 v = viewpointOf(viewpoint);
-      if (v != params_.viewpoint) {
-        params_.viewpoint = v;
-        detector_ = std::make_unique<Detector>(*db_, params_);
-      }
+    std::optional<Vec3> wanted;
+    if (!viewpoint.is_none()) wanted = viewpointOf(viewpoint);
+    else if (!scan.has_viewpoint && given_viewpoint_ == Vec3::Zero()) wanted = guessViewpoint(scan.points).viewpoint;
+    if (wanted && *wanted != params_.viewpoint) {
+      params_.viewpoint = *wanted;
+      detector_ = std::make_unique<Detector>(*db_, params_);
     }
     DetectionResult result;
     {
@@ -221,6 +224,7 @@ class PyDetector {
 
   std::shared_ptr<const ModelDatabase> db_;
   DetectionParams params_;
+  Vec3 given_viewpoint_;  ///< the keyword's (the origin when none)
   std::unique_ptr<Detector> detector_;
 };
 
@@ -302,7 +306,9 @@ PYBIND11_MODULE(binpose, m) {
            "preset: default or thesis; keyword parameters by DetectionParams's names (r, eta, e_gmax, C_n, ...), "
            "in mm, replacing the preset's values scaled to the model.")
       .def("detect", &PyDetector::detect, py::arg("points"), py::arg("normals") = py::none(),
-           py::arg("viewpoint") = py::none(), "points: N x 3 array in mm; normals: N x 3 or None; viewpoint: (x, y, z) mm.")
+           py::arg("viewpoint") = py::none(),
+           "points: N x 3 array in mm; normals: N x 3 or None; viewpoint: (x, y, z) mm (None: the constructor's, else the "
+           "origin when it can have seen the points, else guess_viewpoint's).")
       .def("detect_depth", &PyDetector::detectDepth, py::arg("depth"), py::arg("fx"), py::arg("fy"), py::arg("cx"),
            py::arg("cy"), py::arg("depth_scale") = 1.0, "depth: H x W uint16 array; depth_mm = raw * depth_scale.")
       .def_property_readonly("params", &PyDetector::params, "The values the detector runs with (absolute units).");

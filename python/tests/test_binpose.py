@@ -129,6 +129,12 @@ def test_guess_viewpoint_of_a_scan_in_a_world_frame(caps):
     for d in result:
         in_camera = camera_from_world @ d.pose
         assert nearest_truth(in_camera, truth)[1] < 3.0
+    # without a viewpoint, detect() guesses as the CLI does; from the origin it finds less
+    guessed = binpose.Detector(db).detect(world)
+    assert [d.pose.tolist() for d in guessed] == [d.pose.tolist() for d in result]
+    from_origin = binpose.Detector(db).detect(world, viewpoint=(0, 0, 0))
+    right = sum(nearest_truth(camera_from_world @ d.pose, truth)[1] < 3.0 for d in from_origin)
+    assert right < len(result)
 
 
 def test_bad_input_raises_value_error(tmp_path):
