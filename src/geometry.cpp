@@ -37,6 +37,20 @@ bool bounds(const Points& points, Vec3& lo, Vec3& hi) {
   return true;
 }
 
+float medianOf(std::vector<float>& values) {
+  const auto middle = values.begin() + static_cast<long>(values.size() / 2);
+  std::nth_element(values.begin(), middle, values.end());
+  return *middle;
+}
+
+Eigen::Matrix3f lookingAlong(const Vec3& axis) {
+  Eigen::Matrix3f to_view;
+  to_view.row(2) = axis.transpose();
+  to_view.row(0) = axis.unitOrthogonal().transpose();
+  to_view.row(1) = to_view.row(2).cross(to_view.row(0));
+  return to_view;
+}
+
 Vec3 surfaceCentroid(const Mesh& mesh) {
   Vec3 sum = Vec3::Zero();
   double area = 0;

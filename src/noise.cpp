@@ -1,6 +1,8 @@
 // Noise of a scan from the residuals of plane fits over small neighbourhoods.
 #include "noise.hpp"
 
+#include <binpose/geometry.hpp>
+
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
@@ -31,11 +33,6 @@ constexpr float kSigmasOfConsistency = 2.3f;
 /// The verification's tolerance at least this many sigmas: 87 % of a right surface's points.
 constexpr float kSigmasOfSupport = 1.5f;
 
-float median(std::vector<float>& v) {
-  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
-  return v[v.size() / 2];
-}
-
 }  // namespace
 
 NoiseEstimate estimateNoise(const Points& cloud, std::span<const std::uint32_t> chosen, const NeighbourQuery& neighbours) {
@@ -65,8 +62,8 @@ NoiseEstimate estimateNoise(const Points& cloud, std::span<const std::uint32_t> 
   }
   if (sigmas.empty()) return out;
   out.samples = static_cast<int>(sigmas.size());
-  out.sigma = median(sigmas);
-  out.reach = median(reaches);
+  out.sigma = medianOf(sigmas);
+  out.reach = medianOf(reaches);
   return out;
 }
 

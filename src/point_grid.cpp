@@ -70,8 +70,7 @@ float pixelSpacing(const PointCloud& cloud) {
     if (std::isfinite(best)) spacing.push_back(std::sqrt(best));
   }
   if (spacing.size() < 10) return 0.0f;
-  std::nth_element(spacing.begin(), spacing.begin() + static_cast<long>(spacing.size() / 2), spacing.end());
-  return spacing[spacing.size() / 2];
+  return medianOf(spacing);
 }
 
 PointGrid::PointGrid(const Points& points, float cell) {
@@ -90,8 +89,7 @@ PointGrid::PointGrid(const Points& points, float cell) {
     if (knn(pointAt(static_cast<std::uint32_t>(s)), 2, idx, d2) == 2 && d2[1] > 0) spacing.push_back(std::sqrt(d2[1]));
   }
   if (spacing.empty()) return;
-  std::nth_element(spacing.begin(), spacing.begin() + static_cast<long>(spacing.size() / 2), spacing.end());
-  build(points, 2.0f * spacing[spacing.size() / 2]);
+  build(points, 2.0f * medianOf(spacing));
 }
 
 void PointGrid::build(const Points& points, float cell) {

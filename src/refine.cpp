@@ -1,6 +1,8 @@
 // ICP refinement and verification score.
 #include <binpose/refine.hpp>
 
+#include <binpose/geometry.hpp>
+
 #include "oriented_lanes.hpp"
 
 #include <Eigen/Eigenvalues>
@@ -379,9 +381,7 @@ SceneEvidence::SceneEvidence(const Points& scan, const PointGrid& grid, const Ve
   Vec3 axis = Vec3::Zero();
   for (const Vec3& p : scan) axis += p - viewpoint;
   if (!normalizeSafe(axis)) return;
-  to_view_.row(2) = axis.transpose();  // image frame: z along the mean viewing direction
-  to_view_.row(0) = axis.unitOrthogonal().transpose();
-  to_view_.row(1) = to_view_.row(2).cross(to_view_.row(0));
+  to_view_ = lookingAlong(axis);  // image frame: z along the mean viewing direction
   // Cell size: about 1.5 scan spacings at the median range (spacing from a sample of points).
   std::vector<float> spacing, depth;
   const std::size_t step = std::max<std::size_t>(1, scan.size() / 2000);
@@ -393,12 +393,10 @@ SceneEvidence::SceneEvidence(const Points& scan, const PointGrid& grid, const Ve
       spacing.push_back(std::sqrt(d2[1]));
     depth.push_back((to_view_ * (scan[i] - viewpoint)).z());
   }
-  auto median = [](std::vector<float>& v) {
-    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
-    return v[v.size() / 2];
-  };
-  if (spacing.empty() || !(median(depth) > 0)) return;
-  bin_ = 1.5f * std::max(median(spacing), 1e-6f) / median(depth);
+  if (spacing.empty()) return;
+  const float mid_depth = medianOf(depth);
+  if (!(mid_depth > 0)) return;
+  bin_ = 1.5f * std::max(medianOf(spacing), 1e-6f) / mid_depth;
   // Each point's direction (u, v: x / z and y / z in the image frame) and range, once.
   Projected seen;
   projectAll(scan, viewpoint, to_view_, seen);

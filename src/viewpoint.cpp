@@ -1,6 +1,7 @@
 // The sensor origin of a scan whose file does not give it, from what a single view can show.
 #include <binpose/viewpoint.hpp>
 
+#include <binpose/geometry.hpp>
 #include <binpose/point_grid.hpp>
 
 #include <Eigen/Eigenvalues>
@@ -42,12 +43,9 @@ Sample sampleOf(const Points& points) {
   for (std::size_t i = 0; i < points.size(); i += step)
     if (points[i].allFinite()) s.points.push_back(points[i]);
   if (s.points.size() < 3) return s;
-  Vec3 lo = s.points[0], hi = s.points[0];
-  for (const Vec3& p : s.points) {
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-    s.centre += p;
-  }
+  Vec3 lo, hi;
+  bounds(s.points, lo, hi);
+  for (const Vec3& p : s.points) s.centre += p;
   s.centre /= static_cast<float>(s.points.size());
   s.extent = (hi - lo).norm();
   if (!std::isfinite(s.extent)) return s;  // no spacing: nothing is guessed
@@ -58,9 +56,7 @@ Sample sampleOf(const Points& points) {
     float d2[2];
     if (grid.knn(p, 2, idx, d2) == 2 && d2[1] > 0) nearest.push_back(std::sqrt(d2[1]));
   }
-  if (nearest.empty()) return s;
-  std::nth_element(nearest.begin(), nearest.begin() + static_cast<long>(nearest.size() / 2), nearest.end());
-  s.spacing = nearest[nearest.size() / 2];
+  if (!nearest.empty()) s.spacing = medianOf(nearest);
   return s;
 }
 
@@ -69,10 +65,7 @@ Sample sampleOf(const Points& points) {
 float hiddenIn(const Sample& s, const Vec3& viewpoint) {
   Vec3 axis = s.centre - viewpoint;
   if (s.points.empty() || s.spacing <= 0 || !normalizeSafe(axis)) return 1.0f;
-  Eigen::Matrix3f to_view;
-  to_view.row(2) = axis.transpose();
-  to_view.row(0) = axis.unitOrthogonal().transpose();
-  to_view.row(1) = to_view.row(2).cross(to_view.row(0));
+  const Eigen::Matrix3f to_view = lookingAlong(axis);
   std::vector<Vec3> seen;  // u, v (direction), range
   std::vector<float> depth;
   std::size_t behind = 0;
@@ -83,8 +76,7 @@ float hiddenIn(const Sample& s, const Vec3& viewpoint) {
     depth.push_back(q.z());
   }
   if (seen.empty()) return 1.0f;
-  std::nth_element(depth.begin(), depth.begin() + static_cast<long>(depth.size() / 2), depth.end());
-  const double bin = kCellSpacings * s.spacing / depth[depth.size() / 2];
+  const double bin = kCellSpacings * s.spacing / medianOf(depth);
   // Cells as (x, y) keys, sorted: each run of a key is one line of sight.
   std::vector<std::pair<std::int64_t, float>> cells;
   cells.reserve(seen.size());

@@ -71,6 +71,12 @@ float diameter(const Points& points);
 /// Axis-aligned bounds; false when `points` is empty.
 bool bounds(const Points& points, Vec3& lo, Vec3& hi);
 
+/// The median of `values` (the upper one of an even count), which it partly reorders; not empty.
+float medianOf(std::vector<float>& values);
+
+/// The rotation into a view frame whose z is the unit `axis` (a line of sight), x and y across it.
+Eigen::Matrix3f lookingAlong(const Vec3& axis);
+
 /// Area-weighted centroid of a mesh's surface (exact; on the axis of a body of revolution).
 Vec3 surfaceCentroid(const Mesh& mesh);
 
