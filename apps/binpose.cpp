@@ -135,23 +135,27 @@ void addDetect(CLI::App& app, DetectOptions& o) {
       ->check(CLI::Range(0, 1024))->capture_default_str();
 }
 
+/// The scan file's viewpoint; for a file that gives none, its origin when that can have seen the
+/// scan, else a guess from the scan (said on stderr).
+binpose::Vec3 sceneViewpoint(const binpose::PointCloud& scan) {
+  if (scan.has_viewpoint) return scan.viewpoint;
+  const binpose::ViewpointGuess g = binpose::guessViewpoint(scan.points, scan.viewpoint);
+  if (g.moved)
+    fmt::print(stderr,
+               "note: the scan gives no viewpoint and its origin cannot see {:.0f} % of it; using ({:.1f}, {:.1f}, {:.1f}) mm, "
+               "which hides {:.0f} % (--viewpoint sets it)\n",
+               100 * g.assumed_hidden, g.viewpoint.x(), g.viewpoint.y(), g.viewpoint.z(), 100 * g.hidden);
+  return g.viewpoint;
+}
+
 /// Preset, scaled to the model, then the JSON file, then the options given on the command line.
 binpose::DetectionParams detectParams(const DetectOptions& o, float diameter, const binpose::PointCloud& scan) {
   if (o.preset == "fast")
     fmt::print(stderr, "note: --preset fast is now the default preset; the name 'fast' will be removed in a later release\n");
   binpose::DetectionParams p = binpose::scaledToModel(binpose::presetByName(o.preset), diameter);
-  p.viewpoint = scan.viewpoint;
-  if (!scan.has_viewpoint && o.viewpoint.empty()) {
-    const binpose::ViewpointGuess g = binpose::guessViewpoint(scan.points, scan.viewpoint);
-    if (g.moved) {
-      fmt::print(stderr,
-                 "note: the scan gives no viewpoint and its origin cannot see {:.0f} % of it; using ({:.1f}, {:.1f}, {:.1f}) mm, "
-                 "which hides {:.0f} % (--viewpoint sets it)\n",
-                 100 * g.assumed_hidden, g.viewpoint.x(), g.viewpoint.y(), g.viewpoint.z(), 100 * g.hidden);
-      p.viewpoint = g.viewpoint;
-    }
-  }
+  p.viewpoint = binpose::Vec3::Constant(NAN);  // a JSON file cannot give NaN: still NaN, the file gave none
   if (!o.params_file.empty()) binpose::applyJsonFile(p, o.params_file);
+  if (std::isnan(p.viewpoint.x()) && o.viewpoint.empty()) p.viewpoint = sceneViewpoint(scan);
   if (o.r) p.r = *o.r;
   if (o.rho_sub) p.rho_sub = *o.rho_sub;
   if (o.eta) p.eta = *o.eta;

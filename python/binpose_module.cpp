@@ -161,7 +161,7 @@ class PyDetector {
     params_ = scaledToModel(presetByName(preset), db_->model().diameter);
     applyJson(params_, paramsJson(kwargs), "parameters");
     validate(params_);
-    given_viewpoint_ = params_.viewpoint;
+    viewpoint_given_ = kwargs.contains("viewpoint");
     detector_ = std::make_unique<Detector>(*db_, params_);
   }
 
@@ -209,7 +209,7 @@ class PyDetector {
   PyResult run(const PointCloud& scan, const py::object& viewpoint) {
     std::optional<Vec3> wanted;
     if (!viewpoint.is_none()) wanted = viewpointOf(viewpoint);
-    else if (!scan.has_viewpoint && given_viewpoint_ == Vec3::Zero()) wanted = guessViewpoint(scan.points).viewpoint;
+    else if (!scan.has_viewpoint && !viewpoint_given_) wanted = guessViewpoint(scan.points).viewpoint;
     if (wanted && *wanted != params_.viewpoint) {
       params_.viewpoint = *wanted;
       detector_ = std::make_unique<Detector>(*db_, params_);
@@ -224,7 +224,7 @@ class PyDetector {
 
   std::shared_ptr<const ModelDatabase> db_;
   DetectionParams params_;
-  Vec3 given_viewpoint_;  ///< the keyword's (the origin when none)
+  bool viewpoint_given_ = false;  ///< the constructor's keywords hold a viewpoint
   std::unique_ptr<Detector> detector_;
 };
 
