@@ -23,6 +23,7 @@ StageSettings thesisStages() {
   s.partner_spacing = 0.0f;
   s.retry_all_voters = false;
   s.mirror_retries = 0;
+  s.alternative_cliques = 0;
   s.prescreen = false;
   s.prescreen_retry_steps = 0;
   s.removal_score = 0.0f;
@@ -102,6 +103,7 @@ void validateStages(const StageSettings& s) {
   range(s.candidates_per_point, 1, 64, "candidates_per_point");
   if (s.clique_work_limit < 1) throw Error("clique_work_limit must be >= 1");
   range(s.mirror_retries, 0, 10, "mirror_retries");
+  range(s.alternative_cliques, 0, 10, "alternative_cliques");
   range(s.revolution_candidates, 1, 64, "revolution_candidates");
   if (!(s.revolution_angle_tolerance > 0 && s.revolution_angle_tolerance < 90))
     throw Error(fmt::format("revolution_angle_tolerance must lie in (0, 90) degrees, got {}", s.revolution_angle_tolerance));

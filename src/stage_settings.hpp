@@ -43,6 +43,9 @@ struct StageSettings : DetectionParams {
   // --- clique and pose (4.5-4.6) --------------------------------------------------------------
   std::uint64_t clique_work_limit = 1000;  ///< branch-and-bound nodes per clique search (the best found is kept)
   int mirror_retries = 1;     ///< searches again without a clique that fits only a mirror image, this many times
+  /// After the clique that gave the pose, the largest without its pairs gives another, this many
+  /// times; the pre-screen takes the pose the scan supports best (0: the thesis's one clique).
+  int alternative_cliques = 1;
 
   // --- symmetry (set from use_symmetry) -------------------------------------------------------
   bool use_revolution = true;       ///< a body of revolution votes for orbits (symmetry.hpp)

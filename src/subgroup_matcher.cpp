@@ -15,6 +15,7 @@ void reset(GroupOutcome& out, bool all_voters) {
   out.members.clear();
   out.clique.clear();
   out.poses.clear();
+  out.other_poses.clear();
   out.ran = out.screened_out = out.pending = out.refound = out.held = false;
   out.path.clear();
   out.all_voters = all_voters;
@@ -93,7 +94,10 @@ bool Matcher::match(Slot& s) const {
     const CliqueResult clique = maximumClique(graph, p.clique_work_limit, s.buffers.clique);
     if (retry == 0) s.outcome.largest_clique = static_cast<int>(clique.vertices.size());
     if (clique.vertices.size() < static_cast<std::size_t>(p.C_n)) return false;
-    if (fitClique(s, clique)) return true;
+    if (fitClique(s, clique)) {
+      addAlternativeCliques(s, graph, clique.vertices);
+      return true;
+    }
     // A mirror image (or a degenerate set): the next largest clique without its pairs.
     if (!symmetry.retriesMirrors() || retry >= p.mirror_retries) return false;
     graph.isolate(clique.vertices);
@@ -112,6 +116,26 @@ bool Matcher::fitClique(Slot& s, const CliqueResult& clique) const {
   return true;
 }
 
+// Beyond the thesis: on a noisy scan the largest clique is often a wrong pose a pair or two
+// larger than the right one's (a part turned over, or pairs of its neighbours). Each such clique
+// is sound in its distances (4.5), so the scan judges: the pre-screen scores every alternative.
+// A pose already verified or found (seen) is left out.
+void Matcher::addAlternativeCliques(Slot& s, Graph& graph, std::vector<int> taken) const {
+  const int count = s.outcome.all_voters ? 0 : p.alternative_cliques;  // the first pass only
+  for (int a = 0; a < count; ++a) {
+    graph.isolate(taken);
+    const CliqueResult other = maximumClique(graph, p.clique_work_limit, s.buffers.clique);
+    if (other.vertices.size() < static_cast<std::size_t>(p.C_n)) return;
+    s.clique.clear();
+    for (const int v : other.vertices) s.clique.push_back(s.candidates[v]);
+    const std::vector<PoseFit> fits = symmetry.solve(s.clique, scene.points, scene.normals, db.model().points, s.buffers);
+    if (!fits.empty() && fits.front().ok)
+      for (const PoseFit& fit : fits)
+        if (!p.verify || !seen(fit.pose)) s.outcome.other_poses.push_back(fit.pose);
+    taken = other.vertices;
+  }
+}
+
 float Matcher::prescore(const Pose& pose, bool second_pass) const {
   const Evidence e = evidence.evaluate(pose, icp_model, p.icp_max_distance, 0.0f);
   return second_pass ? e.scoreWithoutGrazing() : e.score();
@@ -124,12 +148,21 @@ bool Matcher::prescreen(Slot& s) const {
   const bool second_pass = s.outcome.all_voters;
   const float gate = second_pass ? std::max(p.min_score, p.retry_min_score) : p.min_score;
   const auto alternatives = std::span<const Pose>(s.outcome.poses).subspan(1);
-  float best = p.prescreen || !alternatives.empty() ? prescore(det.pose, second_pass) : 1.0f;
+  const std::vector<Pose>& others = s.outcome.other_poses;
+  float best = p.prescreen || !alternatives.empty() || !others.empty() ? prescore(det.pose, second_pass) : 1.0f;
   for (const Pose& other : alternatives)
     if (const float score = prescore(other, second_pass); score > best) {
       best = score;
       det.pose = other;
     }
+  bool other_clique = false;
+  for (const Pose& other : others)
+    if (const float score = prescore(other, second_pass); score > best) {
+      best = score;
+      det.pose = other;
+      other_clique = true;
+    }
+  if (other_clique) s.outcome.poses = {det.pose};  // the hypothesis is this clique's, not the first's
   if (!p.prescreen || best >= gate) return true;
   if (p.prescreen_retry_steps > 0 && best >= p.prescreen_retry_share * gate) {
     // Near the scan but a few mm off: a few coarse ICP steps, and another look.

@@ -24,6 +24,8 @@ struct GroupOutcome {
   std::vector<Correspondence> clique;               ///< the clique's pairs (empty: no pose)
   std::vector<Pose> poses;                          ///< the clique's closed-form pose, then its alternatives
                                                     ///< (a body of revolution's other axis sign)
+  std::vector<Pose> other_poses;                    ///< the poses of other cliques (alternative_cliques); one
+                                                    ///< the pre-screen prefers becomes `poses`
   bool screened_out = false;                        ///< the pose failed the pre-screen
   bool pending = false;                             ///< a pose not seen when it ran, not verified yet (Matcher::verify)
   bool held = false;                                ///< its clique not searched yet (run when taken)
@@ -95,6 +97,9 @@ struct Matcher {
   bool match(Slot& s) const;
   /// The closed-form pose of a clique's pairs into the outcome; false when there is none.
   bool fitClique(Slot& s, const CliqueResult& clique) const;
+  /// The poses of the next alternative_cliques largest cliques, each without the pairs of the
+  /// one before (`taken`, isolated in `graph`), into the outcome's other_poses.
+  void addAlternativeCliques(Slot& s, Graph& graph, std::vector<int> taken) const;
   /// The pose's score at the ICP gate on ICP's points (a second pass's: without grazing points).
   float prescore(const Pose& pose, bool second_pass) const;
   /// The scan decides between a clique's poses, and screens out one far from it; false when screened out.

@@ -305,10 +305,17 @@ TEST(Detector, CliquesNearATriedPoseAreNotVerifiedAgain) {
 
 // refound_share: ICP that brings a pose to an object already found stops there, and that
 // hypothesis is dropped. On the cap bin some are, none without it, and each copy is found at
-// the same place with the same score either way (the dropped ones were duplicates).
+// the same place with the same score either way (the dropped ones were duplicates). One clique
+// per sub-group: with the default's alternative cliques, the pre-screen prefers other poses to
+// those that would come to a found cap, and this bin has none to stop.
 TEST(Detector, IcpStopsAtAnObjectAlreadyFound) {
   const ModelDatabase& db = capBin().db;
-  const auto [stopping, full] = capBinFastAnd([](StageSettings& p) { p.refound_share = 0.0f; });
+  StageSettings one_clique = stagesFor(defaultPreset(), db.model().diameter);
+  one_clique.alternative_cliques = 0;
+  StageSettings no_stop = one_clique;
+  no_stop.refound_share = 0.0f;
+  const DetectionResult stopping = Detector(db, one_clique).detect(capBin().scene.cloud);
+  const DetectionResult full = Detector(db, no_stop).detect(capBin().scene.cloud);
   EXPECT_GT(stopping.refound, 0u);
   EXPECT_EQ(full.refound, 0u);
   EXPECT_EQ(stopping.refined, full.refined);
@@ -527,13 +534,15 @@ TEST(RealScans, MilkCartonInPclScene) {
 // absurd value set inside the project is caught before detection.
 TEST(Params, InternalValuesAreNotReadAndAbsurdOnesAreRejected) {
   DetectionParams user = defaultPreset();
-  for (const char* key : {"mirror_retries", "prescreen_retry_steps", "retry_all_voters", "grazing_angle", "local_votes"})
+  for (const char* key : {"mirror_retries", "alternative_cliques", "prescreen_retry_steps", "retry_all_voters", "grazing_angle", "local_votes"})
     EXPECT_THROW(applyJson(user, fmt::format(R"({{"{}": 1}})", key), "test"), Error) << key;
   const StageSettings good = stagesFor(defaultPreset(), 60.0f);
   EXPECT_NO_THROW(validateStages(good));
   const std::vector<std::pair<const char*, std::function<void(StageSettings&)>>> bad = {
       {"mirror_retries -1", [](StageSettings& s) { s.mirror_retries = -1; }},
       {"mirror_retries 11", [](StageSettings& s) { s.mirror_retries = 11; }},
+      {"alternative_cliques -1", [](StageSettings& s) { s.alternative_cliques = -1; }},
+      {"alternative_cliques 11", [](StageSettings& s) { s.alternative_cliques = 11; }},
       {"prescreen_retry_steps -1", [](StageSettings& s) { s.prescreen_retry_steps = -1; }},
       {"prescreen_retry_share 1.5", [](StageSettings& s) { s.prescreen_retry_share = 1.5f; }},
       {"prescreen_retry_share NaN", [](StageSettings& s) { s.prescreen_retry_share = NAN; }},
