@@ -46,6 +46,9 @@ struct StageSettings : DetectionParams {
   /// After the clique that gave the pose, the largest without its pairs gives another, this many
   /// times; the pre-screen takes the pose the scan supports best (0: the thesis's one clique).
   int alternative_cliques = 1;
+  /// ... whose pose replaces the first clique's only when it scores at least this at the ICP
+  /// gate: the largest clique stays the rule, an other one needs strong support.
+  float alternative_min_score = 0.5f;
 
   // --- symmetry (set from use_symmetry) -------------------------------------------------------
   bool use_revolution = true;       ///< a body of revolution votes for orbits (symmetry.hpp)

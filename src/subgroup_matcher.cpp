@@ -118,8 +118,10 @@ bool Matcher::fitClique(Slot& s, const CliqueResult& clique) const {
 
 // Beyond the thesis: on a noisy scan the largest clique is often a wrong pose a pair or two
 // larger than the right one's (a part turned over, or pairs of its neighbours). Each such clique
-// is sound in its distances (4.5), so the scan judges: the pre-screen scores every alternative.
-// A pose already verified or found (seen) is left out.
+// is sound in its distances (4.5), so the scan judges: the pre-screen scores every alternative,
+// and takes one that scores alternative_min_score and more than the first. The first pass only:
+// in the second, a near miss verified from another clique marked a copy's place tried before
+// its own clique came. A pose already verified or found (seen) is left out.
 void Matcher::addAlternativeCliques(Slot& s, Graph& graph, std::vector<int> taken) const {
   const int count = s.outcome.all_voters ? 0 : p.alternative_cliques;  // the first pass only
   for (int a = 0; a < count; ++a) {
@@ -157,7 +159,7 @@ bool Matcher::prescreen(Slot& s) const {
     }
   bool other_clique = false;
   for (const Pose& other : others)
-    if (const float score = prescore(other, second_pass); score > best) {
+    if (const float score = prescore(other, second_pass); score > best && score >= p.alternative_min_score) {
       best = score;
       det.pose = other;
       other_clique = true;

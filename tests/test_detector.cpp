@@ -543,6 +543,7 @@ TEST(Params, InternalValuesAreNotReadAndAbsurdOnesAreRejected) {
       {"mirror_retries 11", [](StageSettings& s) { s.mirror_retries = 11; }},
       {"alternative_cliques -1", [](StageSettings& s) { s.alternative_cliques = -1; }},
       {"alternative_cliques 11", [](StageSettings& s) { s.alternative_cliques = 11; }},
+      {"alternative_min_score 1.5", [](StageSettings& s) { s.alternative_min_score = 1.5f; }},
       {"prescreen_retry_steps -1", [](StageSettings& s) { s.prescreen_retry_steps = -1; }},
       {"prescreen_retry_share 1.5", [](StageSettings& s) { s.prescreen_retry_share = 1.5f; }},
       {"prescreen_retry_share NaN", [](StageSettings& s) { s.prescreen_retry_share = NAN; }},
