@@ -44,10 +44,12 @@ struct StageSettings : DetectionParams {
   std::uint64_t clique_work_limit = 1000;  ///< branch-and-bound nodes per clique search (the best found is kept)
   int mirror_retries = 1;     ///< searches again without a clique that fits only a mirror image, this many times
   /// After the clique that gave the pose, the largest without its pairs gives another, this many
-  /// times; the pre-screen takes the pose the scan supports best (0: the thesis's one clique).
+  /// times (0: the thesis's one clique). The best of them at the ICP gate is refined and scored
+  /// beside the first clique's pose, and the better score is the hypothesis; it alone is
+  /// verified when the first fails the pre-screen.
   int alternative_cliques = 1;
-  /// ... whose pose replaces the first clique's only when it scores at least this at the ICP
-  /// gate: the largest clique stays the rule, an other one needs strong support.
+  /// ... when it scores at least this at the ICP gate: the largest clique stays the rule, an
+  /// other one needs strong support.
   float alternative_min_score = 0.5f;
 
   // --- symmetry (set from use_symmetry) -------------------------------------------------------

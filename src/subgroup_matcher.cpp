@@ -118,13 +118,10 @@ bool Matcher::fitClique(Slot& s, const CliqueResult& clique) const {
 
 // Beyond the thesis: on a noisy scan the largest clique is often a wrong pose a pair or two
 // larger than the right one's (a part turned over, or pairs of its neighbours). Each such clique
-// is sound in its distances (4.5), so the scan judges: the pre-screen scores every alternative,
-// and takes one that scores alternative_min_score and more than the first. The first pass only:
-// in the second, a near miss verified from another clique marked a copy's place tried before
-// its own clique came. A pose already verified or found (seen) is left out.
+// is sound in its distances (4.5), so the scan judges (screenRefineScore). A pose already
+// verified or found (seen) is left out.
 void Matcher::addAlternativeCliques(Slot& s, Graph& graph, std::vector<int> taken) const {
-  const int count = s.outcome.all_voters ? 0 : p.alternative_cliques;  // the first pass only
-  for (int a = 0; a < count; ++a) {
+  for (int a = 0; a < p.alternative_cliques; ++a) {
     graph.isolate(taken);
     const CliqueResult other = maximumClique(graph, p.clique_work_limit, s.buffers.clique);
     if (other.vertices.size() < static_cast<std::size_t>(p.C_n)) return;
@@ -150,21 +147,12 @@ bool Matcher::prescreen(Slot& s) const {
   const bool second_pass = s.outcome.all_voters;
   const float gate = second_pass ? std::max(p.min_score, p.retry_min_score) : p.min_score;
   const auto alternatives = std::span<const Pose>(s.outcome.poses).subspan(1);
-  const std::vector<Pose>& others = s.outcome.other_poses;
-  float best = p.prescreen || !alternatives.empty() || !others.empty() ? prescore(det.pose, second_pass) : 1.0f;
+  float best = p.prescreen || !alternatives.empty() ? prescore(det.pose, second_pass) : 1.0f;
   for (const Pose& other : alternatives)
     if (const float score = prescore(other, second_pass); score > best) {
       best = score;
       det.pose = other;
     }
-  bool other_clique = false;
-  for (const Pose& other : others)
-    if (const float score = prescore(other, second_pass); score > best && score >= p.alternative_min_score) {
-      best = score;
-      det.pose = other;
-      other_clique = true;
-    }
-  if (other_clique) s.outcome.poses = {det.pose};  // the hypothesis is this clique's, not the first's
   if (!p.prescreen || best >= gate) return true;
   if (p.prescreen_retry_steps > 0 && best >= p.prescreen_retry_share * gate) {
     // Near the scan but a few mm off: a few coarse ICP steps, and another look.
@@ -178,12 +166,45 @@ bool Matcher::prescreen(Slot& s) const {
   return false;  // far from the scan even at the ICP gate: not worth refining
 }
 
+std::optional<Pose> Matcher::otherCliquePose(const Slot& s) const {
+  std::optional<Pose> best;
+  float best_score = p.alternative_min_score;
+  for (const Pose& other : s.outcome.other_poses)
+    if (const float score = prescore(other, s.outcome.all_voters); score >= best_score) {
+      best_score = score;
+      best = other;
+    }
+  return best;
+}
+
+void Matcher::keepBetter(Slot& s, const Pose& other) const {
+  Hypothesis& h = s.outcome.hypothesis;
+  const IcpParams icp{p.icp_iterations, p.icp_max_distance, p.verify_tolerance, p.viewpoint, {}, nullptr, pixels};
+  const Pose refined = p.refine ? refinePose(other, icp_model, scan.points, scan_grid, icp) : other;
+  if (p.refound_share > 0 && found(refined)) return;
+  std::vector<std::uint32_t> support;
+  const Evidence e = evidence.evaluate(refined, scored_model, p.verify_tolerance, db.model().sample_radius, &support);
+  if (e.score() <= h.detection.score) return;
+  h.detection.pose = refined;
+  h.detection.score = e.score();
+  h.support = std::move(support);
+  s.outcome.evidence = e;
+  s.outcome.poses = {other};  // the hypothesis is the other clique's, its path not the first's
+  s.outcome.path.clear();
+}
+
 void Matcher::screenRefineScore(Slot& s) const {
   Hypothesis& h = s.outcome.hypothesis;
   Detection& det = h.detection;
+  std::optional<Pose> other = p.verify ? otherCliquePose(s) : std::nullopt;
   if (p.verify && !prescreen(s)) {
-    s.outcome.screened_out = true;
-    return;
+    if (!other) {
+      s.outcome.screened_out = true;
+      return;
+    }
+    det.pose = *other;  // the first clique's poses fail the pre-screen, the other's passes
+    s.outcome.poses = {*other};
+    other.reset();
   }
   if (p.refine) {
     const bool stop_at_found = p.verify && p.refound_share > 0;  // see takeOutcome (group_schedule.cpp)
@@ -200,6 +221,7 @@ void Matcher::screenRefineScore(Slot& s) const {
   }
   s.outcome.evidence = evidence.evaluate(det.pose, scored_model, p.verify_tolerance, db.model().sample_radius, &h.support);
   det.score = s.outcome.evidence.score();
+  if (other) keepBetter(s, *other);  // both refined and scored: the better one is the hypothesis
   std::sort(h.support.begin(), h.support.end());
   h.support.erase(std::unique(h.support.begin(), h.support.end()), h.support.end());
 }

@@ -11,6 +11,7 @@
 #include <binpose/voting.hpp>
 
 #include <functional>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -25,7 +26,7 @@ struct GroupOutcome {
   std::vector<Pose> poses;                          ///< the clique's closed-form pose, then its alternatives
                                                     ///< (a body of revolution's other axis sign)
   std::vector<Pose> other_poses;                    ///< the poses of other cliques (alternative_cliques); one
-                                                    ///< the pre-screen prefers becomes `poses`
+                                                    ///< that verification prefers becomes `poses`
   bool screened_out = false;                        ///< the pose failed the pre-screen
   bool pending = false;                             ///< a pose not seen when it ran, not verified yet (Matcher::verify)
   bool held = false;                                ///< its clique not searched yet (run when taken)
@@ -104,7 +105,12 @@ struct Matcher {
   float prescore(const Pose& pose, bool second_pass) const;
   /// The scan decides between a clique's poses, and screens out one far from it; false when screened out.
   bool prescreen(Slot& s) const;
-  /// Pre-screen, ICP and score of the outcome's pose.
+  /// Of the other cliques' poses, the one scoring best at the ICP gate, when it scores at least
+  /// alternative_min_score.
+  std::optional<Pose> otherCliquePose(const Slot& s) const;
+  /// ICP and score of that pose; it becomes the hypothesis when it scores more than the first.
+  void keepBetter(Slot& s, const Pose& other) const;
+  /// Pre-screen, ICP and score of the outcome's pose (and of the other cliques' best).
   void screenRefineScore(Slot& s) const;
 };
 

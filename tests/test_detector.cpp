@@ -305,17 +305,10 @@ TEST(Detector, CliquesNearATriedPoseAreNotVerifiedAgain) {
 
 // refound_share: ICP that brings a pose to an object already found stops there, and that
 // hypothesis is dropped. On the cap bin some are, none without it, and each copy is found at
-// the same place with the same score either way (the dropped ones were duplicates). One clique
-// per sub-group: with the default's alternative cliques, the pre-screen prefers other poses to
-// those that would come to a found cap, and this bin has none to stop.
+// the same place with the same score either way (the dropped ones were duplicates).
 TEST(Detector, IcpStopsAtAnObjectAlreadyFound) {
   const ModelDatabase& db = capBin().db;
-  StageSettings one_clique = stagesFor(defaultPreset(), db.model().diameter);
-  one_clique.alternative_cliques = 0;
-  StageSettings no_stop = one_clique;
-  no_stop.refound_share = 0.0f;
-  const DetectionResult stopping = Detector(db, one_clique).detect(capBin().scene.cloud);
-  const DetectionResult full = Detector(db, no_stop).detect(capBin().scene.cloud);
+  const auto [stopping, full] = capBinFastAnd([](StageSettings& p) { p.refound_share = 0.0f; });
   EXPECT_GT(stopping.refound, 0u);
   EXPECT_EQ(full.refound, 0u);
   EXPECT_EQ(stopping.refined, full.refined);
