@@ -104,11 +104,17 @@ bool Matcher::match(Slot& s) const {
   }
 }
 
-bool Matcher::fitClique(Slot& s, const CliqueResult& clique) const {
+std::vector<PoseFit> Matcher::posesOf(Slot& s, std::span<const int> vertices) const {
   s.clique.clear();
-  for (const int v : clique.vertices) s.clique.push_back(s.candidates[v]);
-  const std::vector<PoseFit> fits = symmetry.solve(s.clique, scene.points, scene.normals, db.model().points, s.buffers);
-  if (fits.empty() || !fits.front().ok) return false;
+  for (const int v : vertices) s.clique.push_back(s.candidates[v]);
+  std::vector<PoseFit> fits = symmetry.solve(s.clique, scene.points, scene.normals, db.model().points, s.buffers);
+  if (!fits.empty() && !fits.front().ok) fits.clear();
+  return fits;
+}
+
+bool Matcher::fitClique(Slot& s, const CliqueResult& clique) const {
+  const std::vector<PoseFit> fits = posesOf(s, clique.vertices);
+  if (fits.empty()) return false;
   s.outcome.clique.insert(s.outcome.clique.end(), s.clique.begin(), s.clique.end());
   for (const PoseFit& fit : fits) s.outcome.poses.push_back(fit.pose);  // the first, then its alternatives
   const PoseFit& fit = fits.front();
@@ -125,14 +131,18 @@ void Matcher::addAlternativeCliques(Slot& s, Graph& graph, std::vector<int> take
     graph.isolate(taken);
     const CliqueResult other = maximumClique(graph, p.clique_work_limit, s.buffers.clique);
     if (other.vertices.size() < static_cast<std::size_t>(p.C_n)) return;
-    s.clique.clear();
-    for (const int v : other.vertices) s.clique.push_back(s.candidates[v]);
-    const std::vector<PoseFit> fits = symmetry.solve(s.clique, scene.points, scene.normals, db.model().points, s.buffers);
-    if (!fits.empty() && fits.front().ok)
-      for (const PoseFit& fit : fits)
-        if (!p.verify || !seen(fit.pose)) s.outcome.other_poses.push_back(fit.pose);
+    for (const PoseFit& fit : posesOf(s, other.vertices))
+      if (!p.verify || !seen(fit.pose)) s.outcome.other_poses.push_back(fit.pose);
     taken = other.vertices;
   }
+}
+
+IcpParams Matcher::icpParams(int iterations) const {
+  return {iterations, p.icp_max_distance, p.verify_tolerance, p.viewpoint, {}, nullptr, pixels};
+}
+
+Evidence Matcher::scoredEvidence(const Pose& pose, std::vector<std::uint32_t>& support) const {
+  return evidence.evaluate(pose, scored_model, p.verify_tolerance, db.model().sample_radius, &support);
 }
 
 float Matcher::prescore(const Pose& pose, bool second_pass) const {
@@ -156,8 +166,7 @@ bool Matcher::prescreen(Slot& s) const {
   if (!p.prescreen || best >= gate) return true;
   if (p.prescreen_retry_steps > 0 && best >= p.prescreen_retry_share * gate) {
     // Near the scan but a few mm off: a few coarse ICP steps, and another look.
-    const IcpParams nudge{p.prescreen_retry_steps, p.icp_max_distance, p.verify_tolerance, p.viewpoint, {}, nullptr, pixels};
-    const Pose moved = refinePose(det.pose, icp_model, scan.points, scan_grid, nudge);
+    const Pose moved = refinePose(det.pose, icp_model, scan.points, scan_grid, icpParams(p.prescreen_retry_steps));
     if (prescore(moved, second_pass) >= gate) {
       det.pose = moved;
       return true;
@@ -179,11 +188,10 @@ std::optional<Pose> Matcher::otherCliquePose(const Slot& s) const {
 
 void Matcher::keepBetter(Slot& s, const Pose& other) const {
   Hypothesis& h = s.outcome.hypothesis;
-  const IcpParams icp{p.icp_iterations, p.icp_max_distance, p.verify_tolerance, p.viewpoint, {}, nullptr, pixels};
-  const Pose refined = p.refine ? refinePose(other, icp_model, scan.points, scan_grid, icp) : other;
+  const Pose refined = p.refine ? refinePose(other, icp_model, scan.points, scan_grid, icpParams(p.icp_iterations)) : other;
   if (p.refound_share > 0 && found(refined)) return;
   std::vector<std::uint32_t> support;
-  const Evidence e = evidence.evaluate(refined, scored_model, p.verify_tolerance, db.model().sample_radius, &support);
+  const Evidence e = scoredEvidence(refined, support);
   if (e.score() <= h.detection.score) return;
   h.detection.pose = refined;
   h.detection.score = e.score();
@@ -208,7 +216,7 @@ void Matcher::screenRefineScore(Slot& s) const {
   }
   if (p.refine) {
     const bool stop_at_found = p.verify && p.refound_share > 0;  // see takeOutcome (group_schedule.cpp)
-    IcpParams icp{p.icp_iterations, p.icp_max_distance, p.verify_tolerance, p.viewpoint, {}, nullptr, pixels};
+    IcpParams icp = icpParams(p.icp_iterations);
     if (stop_at_found) {
       icp.path = &s.outcome.path;
       icp.stop = found;
@@ -219,7 +227,7 @@ void Matcher::screenRefineScore(Slot& s) const {
       return;
     }
   }
-  s.outcome.evidence = evidence.evaluate(det.pose, scored_model, p.verify_tolerance, db.model().sample_radius, &h.support);
+  s.outcome.evidence = scoredEvidence(det.pose, h.support);
   det.score = s.outcome.evidence.score();
   if (other) keepBetter(s, *other);  // both refined and scored: the better one is the hypothesis
   std::sort(h.support.begin(), h.support.end());

@@ -96,11 +96,18 @@ struct Matcher {
   /// Clique and closed-form pose (a refused mirror-image clique gives way to the next, up to
   /// mirror_retries times); false when there is none. The pose goes into the outcome.
   bool match(Slot& s) const;
+  /// The closed-form poses (4.6) of the candidates at `vertices`, best first, their pairs in the
+  /// slot's clique; empty when there is none.
+  std::vector<PoseFit> posesOf(Slot& s, std::span<const int> vertices) const;
   /// The closed-form pose of a clique's pairs into the outcome; false when there is none.
   bool fitClique(Slot& s, const CliqueResult& clique) const;
   /// The poses of the next alternative_cliques largest cliques, each without the pairs of the
   /// one before (`taken`, isolated in `graph`), into the outcome's other_poses.
   void addAlternativeCliques(Slot& s, Graph& graph, std::vector<int> taken) const;
+  /// ICP of this many steps against the scan, gated and scored as verification does.
+  IcpParams icpParams(int iterations) const;
+  /// The final score's evidence for a pose on all model points, the supporting scan points into `support`.
+  Evidence scoredEvidence(const Pose& pose, std::vector<std::uint32_t>& support) const;
   /// The pose's score at the ICP gate on ICP's points (a second pass's: without grazing points).
   float prescore(const Pose& pose, bool second_pass) const;
   /// The scan decides between a clique's poses, and screens out one far from it; false when screened out.
