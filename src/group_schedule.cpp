@@ -173,11 +173,28 @@ void GroupSchedule::choosePosesToVerify(std::size_t count) {
   }
 }
 
+void GroupSchedule::preferOther(GroupOutcome& o) const {
+  const auto any = [](const std::vector<Pose>& poses, const std::function<bool(const Pose&)>& test) {
+    return std::any_of(poses.begin(), poses.end(), test);
+  };
+  // Run in turn, a first pose seen or come to a found object is dropped before the other is tried.
+  if (!o.other || any(o.poses, matcher_.seen) || o.refound || any(o.path, matcher_.found)) return;
+  OtherHypothesis& other = *o.other;
+  if (other.hypothesis.detection.score <= o.hypothesis.detection.score || matcher_.seen(other.start) ||
+      any(other.path, matcher_.found))
+    return;
+  o.poses = {other.start};
+  o.hypothesis = std::move(other.hypothesis);
+  o.evidence = other.evidence;
+  o.path = std::move(other.path);
+}
+
 void GroupSchedule::take(GroupOutcome& o) {
   MatchState& s = state_;
   if (!o.ran) return;
   ++s.subgroups_run;
   if (o.clique.empty()) return;
+  if (p_.verify) preferOther(o);
   if (p_.verify && std::any_of(o.poses.begin(), o.poses.end(), matcher_.seen)) return;  // that object again
   ++s.hypotheses_made;
   if (p_.tried_share > 0) s.tried.insert(s.tried.end(), o.poses.begin(), o.poses.end());

@@ -60,6 +60,9 @@ class GroupSchedule {
   void choosePosesToVerify(std::size_t count);
   /// One outcome taken: the counts, hypotheses and removals of running the sub-groups in turn.
   void take(GroupOutcome& o);
+  /// The other clique's hypothesis in place of the first's when it scores more and neither is
+  /// an object found or tried before, judged on the objects found by now (as when run in turn).
+  void preferOther(GroupOutcome& o) const;
 
   const StageSettings& p_;
   const ModelShape& shape_;

@@ -16,6 +16,7 @@ void reset(GroupOutcome& out, bool all_voters) {
   out.clique.clear();
   out.poses.clear();
   out.other_poses.clear();
+  out.other.reset();
   out.ran = out.screened_out = out.pending = out.refound = out.held = false;
   out.path.clear();
   out.all_voters = all_voters;
@@ -54,6 +55,7 @@ bool Matcher::prepare(std::span<const std::uint32_t> group, const std::vector<ch
     out.evidence = earlier->evidence;
     out.path = earlier->path;
     out.refound = earlier->refound;
+    out.other = earlier->other;
     return false;
   }
   out.pending = true;
@@ -124,15 +126,13 @@ bool Matcher::fitClique(Slot& s, const CliqueResult& clique) const {
 
 // Beyond the thesis: on a noisy scan the largest clique is often a wrong pose a pair or two
 // larger than the right one's (a part turned over, or pairs of its neighbours). Each such clique
-// is sound in its distances (4.5), so the scan judges (screenRefineScore). A pose already
-// verified or found (seen) is left out.
+// is sound in its distances (4.5), so the scan judges (screenRefineScore, GroupSchedule::take).
 void Matcher::addAlternativeCliques(Slot& s, Graph& graph, std::vector<int> taken) const {
   for (int a = 0; a < p.alternative_cliques; ++a) {
     graph.isolate(taken);
     const CliqueResult other = maximumClique(graph, p.clique_work_limit, s.buffers.clique);
     if (other.vertices.size() < static_cast<std::size_t>(p.C_n)) return;
-    for (const PoseFit& fit : posesOf(s, other.vertices))
-      if (!p.verify || !seen(fit.pose)) s.outcome.other_poses.push_back(fit.pose);
+    for (const PoseFit& fit : posesOf(s, other.vertices)) s.outcome.other_poses.push_back(fit.pose);
     taken = other.vertices;
   }
 }
@@ -186,19 +186,19 @@ std::optional<Pose> Matcher::otherCliquePose(const Slot& s) const {
   return best;
 }
 
-void Matcher::keepBetter(Slot& s, const Pose& other) const {
-  Hypothesis& h = s.outcome.hypothesis;
-  const Pose refined = p.refine ? refinePose(other, icp_model, scan.points, scan_grid, icpParams(p.icp_iterations)) : other;
-  if (p.refound_share > 0 && found(refined)) return;
-  std::vector<std::uint32_t> support;
-  const Evidence e = scoredEvidence(refined, support);
-  if (e.score() <= h.detection.score) return;
-  h.detection.pose = refined;
-  h.detection.score = e.score();
-  h.support = std::move(support);
-  s.outcome.evidence = e;
-  s.outcome.poses = {other};  // the hypothesis is the other clique's, its path not the first's
-  s.outcome.path.clear();
+void Matcher::verifyOther(Slot& s, const Pose& start) const {
+  OtherHypothesis& other = s.outcome.other.emplace();
+  other.start = start;
+  Detection& det = other.hypothesis.detection;
+  det = s.outcome.hypothesis.detection;
+  det.pose = start;
+  if (p.refine) {
+    IcpParams icp = icpParams(p.icp_iterations);
+    if (p.refound_share > 0) icp.path = &other.path;  // looked at when taken, as the first's
+    det.pose = refinePose(start, icp_model, scan.points, scan_grid, icp);
+  }
+  other.evidence = scoredEvidence(det.pose, other.hypothesis.support);
+  det.score = other.evidence.score();
 }
 
 void Matcher::screenRefineScore(Slot& s) const {
@@ -229,9 +229,12 @@ void Matcher::screenRefineScore(Slot& s) const {
   }
   s.outcome.evidence = scoredEvidence(det.pose, h.support);
   det.score = s.outcome.evidence.score();
-  if (other) keepBetter(s, *other);  // both refined and scored: the better one is the hypothesis
-  std::sort(h.support.begin(), h.support.end());
-  h.support.erase(std::unique(h.support.begin(), h.support.end()), h.support.end());
+  if (other) verifyOther(s, *other);  // both refined and scored: the better is taken (GroupSchedule::take)
+  for (std::vector<std::uint32_t>* support : {&h.support, s.outcome.other ? &s.outcome.other->hypothesis.support : nullptr})
+    if (support != nullptr) {
+      std::sort(support->begin(), support->end());
+      support->erase(std::unique(support->begin(), support->end()), support->end());
+    }
 }
 
 }  // namespace binpose

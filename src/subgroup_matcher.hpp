@@ -17,6 +17,14 @@
 
 namespace binpose {
 
+/// Another clique's pose, refined and scored beside the first clique's (alternative_cliques).
+struct OtherHypothesis {
+  Pose start;               ///< its closed-form pose
+  Hypothesis hypothesis;    ///< refined and scored
+  Evidence evidence;        ///< its counts
+  std::vector<Pose> path;   ///< ICP's pose after each step
+};
+
 /// What one sub-group gave on the scene as it stood when it ran. Sub-groups run side by side in
 /// batches and are taken in their order afterwards (group_schedule.hpp).
 struct GroupOutcome {
@@ -25,8 +33,9 @@ struct GroupOutcome {
   std::vector<Correspondence> clique;               ///< the clique's pairs (empty: no pose)
   std::vector<Pose> poses;                          ///< the clique's closed-form pose, then its alternatives
                                                     ///< (a body of revolution's other axis sign)
-  std::vector<Pose> other_poses;                    ///< the poses of other cliques (alternative_cliques); one
-                                                    ///< that verification prefers becomes `poses`
+  std::vector<Pose> other_poses;                    ///< the poses of other cliques (alternative_cliques)
+  std::optional<OtherHypothesis> other;             ///< the best of them, verified; taken instead of the
+                                                    ///< hypothesis when it scores more (GroupSchedule::take)
   bool screened_out = false;                        ///< the pose failed the pre-screen
   bool pending = false;                             ///< a pose not seen when it ran, not verified yet (Matcher::verify)
   bool held = false;                                ///< its clique not searched yet (run when taken)
@@ -115,8 +124,8 @@ struct Matcher {
   /// Of the other cliques' poses, the one scoring best at the ICP gate, when it scores at least
   /// alternative_min_score.
   std::optional<Pose> otherCliquePose(const Slot& s) const;
-  /// ICP and score of that pose; it becomes the hypothesis when it scores more than the first.
-  void keepBetter(Slot& s, const Pose& other) const;
+  /// ICP and score of that pose into the outcome's `other`.
+  void verifyOther(Slot& s, const Pose& start) const;
   /// Pre-screen, ICP and score of the outcome's pose (and of the other cliques' best).
   void screenRefineScore(Slot& s) const;
 };
