@@ -211,6 +211,7 @@ void GroupSchedule::take(GroupOutcome& o) {
   if (p_.verify && det.score < p_.min_score) return;
   if (p_.verify && o.all_voters && o.evidence.scoreWithoutGrazing() < p_.retry_min_score) return;  // see retry_min_score
   if (p_.verify && o.evidence.visibleSupport() < p_.min_visible_support) return;  // met by the scan only in passing
+  if (p_.verify && matcher_.outlineContinued(det.pose)) return;  // a face laid on a larger surface
   const bool remove = det.score >= p_.removal_score;
   if (remove || det.score >= p_.explain_score) s.found.push_back(det.pose);
   if (remove) removeExplained(matcher_.scene.points, det.pose, shape_, p_.sigma_dist, s.removed);  // 5.2.6

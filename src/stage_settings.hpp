@@ -63,6 +63,10 @@ struct StageSettings : DetectionParams {
   /// A detection's facing points that nothing in the scan hides must be supported at least this
   /// share (Evidence::visibleSupport; 0: no test).
   float min_visible_support = 0.4f;
+  /// A detection whose visible outline the scan's surface goes on past, along the part's own
+  /// tangent planes, at more than this share of its judged steps is dropped
+  /// (SceneEvidence::outline: one face laid on a larger surface; 1: no test).
+  float max_outline_share = 0.4f;
   bool prescreen = true;          ///< drop a pose scoring under min_score at the ICP gate before ICP
   int prescreen_retry_steps = 2;  ///< coarse ICP steps for a pose just short of the pre-screen (0: none)
   float prescreen_retry_share = 0.33f;  ///< ... when it scores at least this share of min_score

@@ -145,6 +145,13 @@ Evidence Matcher::scoredEvidence(const Pose& pose, std::vector<std::uint32_t>& s
   return evidence.evaluate(pose, scored_model, p.verify_tolerance, db.model().sample_radius, &support);
 }
 
+bool Matcher::outlineContinued(const Pose& pose) const {
+  constexpr int kMinJudged = 4;  // one or two coincidences do not decide
+  if (p.max_outline_share >= 1.0f) return false;
+  const OutlineEvidence o = evidence.outline(pose, scored_model, p.verify_tolerance, db.model().sample_radius);
+  return o.judged >= kMinJudged && o.share() > p.max_outline_share;
+}
+
 float Matcher::prescore(const Pose& pose, bool second_pass) const {
   const Evidence e = evidence.evaluate(pose, icp_model, p.icp_max_distance, 0.0f);
   return second_pass ? e.scoreWithoutGrazing() : e.score();

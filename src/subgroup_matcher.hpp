@@ -98,6 +98,9 @@ struct Matcher {
 
   /// Pre-screen, ICP and score of a pending outcome's pose.
   void verify(Slot& s) const;
+  /// Whether the scan's surface goes on past the posed part's outline at more than
+  /// max_outline_share of it (SceneEvidence::outline).
+  [[nodiscard]] bool outlineContinued(const Pose& pose) const;
 
  private:
   /// The candidate correspondences of the outcome's members; false when a second pass has nothing new.

@@ -126,6 +126,40 @@ TEST(Evidence, VisibleSupportTellsAHiddenPartFromAPassingPose) {
   EXPECT_LT(outside.visibleSupport(), 0.3f);
 }
 
+// A box's near face laid on a larger surface of the scan (the top of a bigger box) is supported
+// wherever it lies, and scores as if it were there; past its outline the scan goes on along the
+// same plane. The same box lying on a floor 50 mm behind, or with a plate in front beyond one of
+// its edges, has an outline the scan drops from or rises to: none continued.
+TEST(Evidence, OutlineTellsAFaceLaidOnALargerSurface) {
+  const OrientedModel box = prepareModel(builtinPart("box"), ModelParams{});  // 60 x 40 x 20, centred
+  const PreparedModel model(box.points, box.normals);
+  Pose pose = Pose::Identity();  // near face z = 490, x in [-30, 30], y in [-20, 20]
+  pose.translation() = Vec3(0, 0, 500);
+  const auto judge = [&](const PointCloud& scan) {
+    const PointGrid grid(scan.points);
+    const SceneEvidence evidence(scan.points, grid, Vec3::Zero());
+    return std::pair{evidence.evaluate(pose, model, 1.0f, box.sample_radius), evidence.outline(pose, model, 1.0f, box.sample_radius)};
+  };
+  PointCloud larger, on_floor, beside_plate;
+  for (float x = -99.75f; x < 100; x += 0.5f)
+    for (float y = -59.75f; y < 60; y += 0.5f) {
+      const bool face = std::abs(x) <= 30 && std::abs(y) <= 20;
+      larger.points.emplace_back(x, y, 490.0f);
+      on_floor.points.emplace_back(x, y, face ? 490.0f : 540.0f);
+      beside_plate.points.emplace_back(x, y, face ? 490.0f : x > 30 ? 450.0f : 540.0f);
+    }
+  const auto [laid, laid_outline] = judge(larger);
+  EXPECT_GT(laid.score(), 0.9f);
+  EXPECT_GT(laid_outline.judged, 50);
+  EXPECT_GT(laid_outline.share(), 0.9f);
+  for (const PointCloud* scan : {&on_floor, &beside_plate}) {
+    const auto [right, right_outline] = judge(*scan);
+    EXPECT_GT(right.score(), 0.9f);
+    EXPECT_GT(right_outline.judged, 30);
+    EXPECT_EQ(right_outline.continued, 0);
+  }
+}
+
 // A box standing beside the line of sight, as a sensor sees it: its near face only, and the
 // floor far behind where the box does not hide it. Two of its side faces face the sensor, but
 // at 82-84 degrees, nearly edge-on: a sensor drops such surface, so that they are neither seen

@@ -106,6 +106,16 @@ struct Evidence {
   }
 };
 
+/// What the scan shows just beyond a posed model's outline, as the sensor sees it: where the scan
+/// there lies on the part's own surface continued (its tangent plane), the scan's surface goes on
+/// where the part ends, and the part explains only a piece of it.
+struct OutlineEvidence {
+  int judged = 0;     ///< outline steps with a visible part edge and a scan surface beyond it
+  int continued = 0;  ///< ... where that surface lies on the part's tangent plane, continued
+  /// continued / judged (0 when none is judged).
+  [[nodiscard]] float share() const { return judged == 0 ? 0.0f : static_cast<float>(continued) / static_cast<float>(judged); }
+};
+
 /// The scan as seen from its viewpoint: a grid for support, and a range image (nearest range
 /// per direction, built from the points themselves, so unorganized scans work too) for
 /// free-space contradictions.
@@ -136,6 +146,12 @@ class SceneEvidence {
   [[nodiscard]] Evidence evaluate(const Pose& pose, const Points& model_points, const Points& model_normals,
                                   float tolerance, float model_spacing,
                                   std::vector<std::uint32_t>* support = nullptr) const;
+  /// The scan beyond the posed model's outline (OutlineEvidence; src/outline.cpp): a wrong pose
+  /// that lays one face of the part on a larger surface of the scan (the top of another part,
+  /// the floor) is supported wherever it lies, but the surface goes on past its edges.
+  /// `model_spacing` (> 0): the model's sample spacing, mm.
+  [[nodiscard]] OutlineEvidence outline(const Pose& pose, const PreparedModel& model, float tolerance,
+                                        float model_spacing) const;
 
  private:
   /// Range-image cell of the direction (u, v) (x / z and y / z in the image frame), or -1
