@@ -2,6 +2,7 @@
 #include <binpose/detector.hpp>
 
 #include "duplicates.hpp"
+#include "face_hypotheses.hpp"
 #include "group_schedule.hpp"
 #include "local_votes.hpp"
 #include "model_shape.hpp"
@@ -22,6 +23,8 @@ namespace {
 
 /// The near-model grid's cell: the removal distance, and at least the same-place tolerance.
 constexpr float kShapeCellShare = 0.1f;
+/// A flat face of the model is tried from a quarter of its diameter squared (face_hypotheses).
+constexpr float kLeastFaceShare = 0.25f;
 /// No scan in millimetres has a point this far from its origin (100 km): such a file is not a
 /// scan in mm, and the grids over it would overflow.
 constexpr float kFarthestCoordinate = 1e8f;
@@ -100,6 +103,14 @@ Detector::Detector(const ModelDatabase& db, const StageSettings& settings)
   shape_ = std::make_unique<const ModelShape>(model.points, model.diameter,
                                               std::max(settings_->sigma_dist, kShapeCellShare * model.diameter), icp_model_.points(),
                                               orbits() != nullptr ? &orbits()->axis : nullptr, cyclicSymmetry());
+  // A face counts from a quarter of the part's diameter squared (a gear's or a plate's side).
+  const float per_point = model.area > 0 && !model.points.empty() ? static_cast<float>(model.area / static_cast<double>(model.points.size()))
+                                                                  : model.sample_radius * model.sample_radius;
+  faces_ = std::make_unique<const std::vector<ModelFace>>(
+      settings_->face_hypotheses ? flatFaces(model.points, model.normals, model.sample_radius, per_point,
+                                             kLeastFaceShare * kLeastFaceShare * model.diameter * model.diameter,
+                                             orbits() != nullptr ? &orbits()->axis.direction : nullptr)
+                                 : std::vector<ModelFace>{});
 }
 
 Detector::~Detector() = default;
@@ -141,6 +152,7 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
     result.subgroups_retried = order.size();
     schedule.run(order, true);
   }
+  if (p.verify && p.face_hypotheses && !state.enough) addFaceDetections(*faces_, matcher, *shape_, state);
   shareTimes(schedule.times(), local.setup_ms, msSince(t_match), result.timing);
 
   const auto t_suppress = Clock::now();  // best first, one detection per object

@@ -24,6 +24,7 @@ StageSettings thesisStages() {
   s.retry_all_voters = false;
   s.mirror_retries = 0;
   s.alternative_cliques = 0;
+  s.face_hypotheses = false;
   s.prescreen = false;
   s.prescreen_retry_steps = 0;
   s.removal_score = 0.0f;

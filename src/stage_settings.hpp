@@ -67,6 +67,10 @@ struct StageSettings : DetectionParams {
   /// tangent planes, at more than this share of its judged steps is dropped
   /// (SceneEvidence::outline: one face laid on a larger surface; 1: no test).
   float max_outline_share = 0.4f;
+  /// After the sub-groups, the scene's flat regions that no detection explains, each about as large
+  /// as a flat face of the model, are tried as that face (face_hypotheses.hpp): a copy that shows
+  /// one flat face only gives no clique.
+  bool face_hypotheses = true;
   bool prescreen = true;          ///< drop a pose scoring under min_score at the ICP gate before ICP
   int prescreen_retry_steps = 2;  ///< coarse ICP steps for a pose just short of the pre-screen (0: none)
   float prescreen_retry_share = 0.33f;  ///< ... when it scores at least this share of min_score

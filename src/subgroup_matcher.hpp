@@ -98,6 +98,10 @@ struct Matcher {
 
   /// Pre-screen, ICP and score of a pending outcome's pose.
   void verify(Slot& s) const;
+  /// ICP of this many steps against the scan, gated and scored as verification does.
+  IcpParams icpParams(int iterations) const;
+  /// The final score's evidence for a pose on all model points, the supporting scan points into `support`.
+  Evidence scoredEvidence(const Pose& pose, std::vector<std::uint32_t>& support) const;
   /// Whether the scan's surface goes on past the posed part's outline at more than
   /// max_outline_share of it (SceneEvidence::outline).
   [[nodiscard]] bool outlineContinued(const Pose& pose) const;
@@ -116,10 +120,6 @@ struct Matcher {
   /// The poses of the next alternative_cliques largest cliques, each without the pairs of the
   /// one before (`taken`, isolated in `graph`), into the outcome's other_poses.
   void addAlternativeCliques(Slot& s, Graph& graph, std::vector<int> taken) const;
-  /// ICP of this many steps against the scan, gated and scored as verification does.
-  IcpParams icpParams(int iterations) const;
-  /// The final score's evidence for a pose on all model points, the supporting scan points into `support`.
-  Evidence scoredEvidence(const Pose& pose, std::vector<std::uint32_t>& support) const;
   /// The pose's score at the ICP gate on ICP's points (a second pass's: without grazing points).
   float prescore(const Pose& pose, bool second_pass) const;
   /// The scan decides between a clique's poses, and screens out one far from it; false when screened out.

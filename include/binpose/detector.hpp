@@ -52,6 +52,7 @@ struct Hypothesis {
 
 class ModelShape;
 class PartSymmetry;
+struct ModelFace;
 struct StageSettings;
 
 class Detector {
@@ -83,6 +84,7 @@ class Detector {
   PreparedModel scored_model_;  ///< all the model points, for the score
   std::unique_ptr<const PartSymmetry> symmetry_;  ///< none, a body of revolution, or n-fold symmetry
   std::unique_ptr<const ModelShape> shape_;  ///< removal, same-pose and overlap tests
+  std::unique_ptr<const std::vector<ModelFace>> faces_;  ///< the model's flat faces (face_hypotheses)
 };
 
 }  // namespace binpose

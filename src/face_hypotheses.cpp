@@ -1,0 +1,292 @@
+// Beyond the thesis: poses of a copy seen by one flat face (face_hypotheses.hpp).
+#include "face_hypotheses.hpp"
+
+#include "removal.hpp"
+
+#include <binpose/point_grid.hpp>
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <optional>
+
+namespace binpose {
+
+namespace {
+
+/// Normals of one model face: the model's are exact, only a crease turns them.
+constexpr float kModelFaceDegrees = 5.0f;
+/// ... and its points within this share of the model's sample spacing of one plane.
+constexpr float kFaceFlatness = 0.25f;
+/// Normals of one flat scene region, neighbour to neighbour: a noisy scan's are 10-15 degrees off.
+constexpr float kRegionDegrees = 20.0f;
+/// Neighbours link within this many sample spacings (the plane search's 2.5).
+constexpr float kLinkSpacings = 2.5f;
+/// A region this share of a face's area to this share: the face about wholly in view, so that
+/// its centre is the region's.
+constexpr float kLeastAreaShare = 0.6f, kMostAreaShare = 1.3f;
+/// ... and its extent along each principal axis (RMS from the centre) within this share of the face's.
+constexpr float kLeastSpreadShare = 0.75f;
+/// The turn about the face's normal: first in steps of 5 degrees, then in steps of 1 degree and of
+/// a fifth of the verification tolerance along the face, while the support grows.
+constexpr float kFullTurn = static_cast<float>(2 * M_PI);
+constexpr int kSpins = 72;  // 5 degrees
+/// An axis of revolution within about 8 degrees of a face's normal turns the face onto itself.
+constexpr float kAxisCosine = 0.99f;
+/// The coarse spins are judged on this many model points, each face's best kShortlist of them again on
+/// kJudgedPoints (ICP's share is finer than the choice needs).
+constexpr std::size_t kCoarsePoints = 48;
+constexpr std::size_t kJudgedPoints = 250;
+constexpr std::size_t kShortlist = 4;
+constexpr float kFineDegrees = 1.0f;
+constexpr float kFineShiftTolerances = 0.5f;
+constexpr int kMostFineSteps = 12;
+/// The scan must support the best laid pose more than twice as well as any other face or turn
+/// (one the part's symmetry does not make the same pose): a block's square faces, a plate's two
+/// sides look alike from one side, and the part behind the face is hidden.
+constexpr float kMostRivalShare = 0.5f;
+
+/// The points at `members`' plane fit: centroid, unit normal turned like `towards`, RMS distance.
+struct PlaneFit {
+  Vec3 centre = Vec3::Zero(), normal = Vec3::Zero();
+  float rms = 0;
+  float spread[2] = {0, 0};  ///< RMS distance from the centre along the plane's two principal axes, largest first
+};
+
+PlaneFit fitPlane(const Points& points, const std::vector<std::uint32_t>& members, const Vec3& towards) {
+  PlaneFit fit;
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (std::uint32_t i : members) c += points[i].cast<double>();
+  c /= static_cast<double>(members.size());
+  Eigen::Matrix3d W = Eigen::Matrix3d::Zero();
+  for (std::uint32_t i : members) {
+    const Eigen::Vector3d x = points[i].cast<double>() - c;
+    W += x * x.transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(W);
+  fit.centre = c.cast<float>();
+  fit.normal = solver.eigenvectors().col(0).cast<float>().normalized();
+  if (fit.normal.dot(towards) < 0) fit.normal = -fit.normal;
+  const auto rms = [&](int k) { return static_cast<float>(std::sqrt(std::max(0.0, solver.eigenvalues()[k]) / static_cast<double>(members.size()))); };
+  fit.rms = rms(0);
+  fit.spread[0] = rms(2);
+  fit.spread[1] = rms(1);
+  return fit;
+}
+
+/// Regions of points linked within `link`, grown from seeds in index order: a neighbour j of a
+/// member joins when joins(j, member, seed); `usable` points only. Deterministic.
+template <class Joins>
+std::vector<std::vector<std::uint32_t>> growRegions(const Points& points, const std::vector<char>& usable, float link, Joins joins) {
+  std::vector<std::vector<std::uint32_t>> regions;
+  if (points.empty()) return regions;
+  const PointGrid grid(points);
+  std::vector<char> taken(points.size(), 0);
+  std::vector<std::uint32_t> near;
+  for (std::uint32_t seed = 0; seed < points.size(); ++seed) {
+    if (taken[seed] || !usable[seed]) continue;
+    std::vector<std::uint32_t> region{seed};
+    taken[seed] = 1;
+    for (std::size_t next = 0; next < region.size(); ++next) {
+      grid.within(points[region[next]], link, near);
+      std::sort(near.begin(), near.end());
+      for (std::uint32_t j : near)
+        if (!taken[j] && usable[j] && joins(j, region[next], seed)) {
+          taken[j] = 1;
+          region.push_back(j);
+        }
+    }
+    std::sort(region.begin(), region.end());
+    regions.push_back(std::move(region));
+  }
+  return regions;
+}
+
+/// The pose that lays `face` on the plane (centre, normal), turned by `spin` radians about the
+/// normal and shifted by `shift` along it.
+Pose facePose(const ModelFace& face, const PlaneFit& plane, float spin, const Vec3& shift) {
+  // The face's outward normal onto the region's normal, which faces the sensor.
+  const Eigen::Matrix3f lay = Eigen::Quaternionf::FromTwoVectors(face.normal, plane.normal).toRotationMatrix();
+  Pose pose = Pose::Identity();
+  pose.linear() = Eigen::AngleAxisf(spin, plane.normal).toRotationMatrix() * lay;
+  pose.translation() = plane.centre + shift - pose.linear() * face.centre;
+  return pose;
+}
+
+/// The support of a pose on a share of the model at the verification tolerance.
+float support(const Matcher& m, const PreparedModel& model, const Pose& pose) {
+  return m.evidence.evaluate(pose, model, m.p.verify_tolerance, 0.0f).score();
+}
+
+/// The scene's flat regions not explained yet, each with its plane fit and area (mm^2).
+struct FlatRegion {
+  std::vector<std::uint32_t> members;
+  PlaneFit plane;
+  float area = 0;
+};
+
+std::vector<FlatRegion> flatRegions(const Matcher& m, const std::vector<char>& removed, float least_area) {
+  const PreparedScene& scene = m.scene;
+  std::vector<std::uint32_t> left;  // the points no detection explains
+  Points points, normals;
+  for (std::uint32_t i = 0; i < scene.points.size(); ++i)
+    if (!removed[i]) {
+      left.push_back(i);
+      points.push_back(scene.points[i]);
+      normals.push_back(scene.normals[i]);
+    }
+  const float spacing = 1.0f / std::sqrt(m.p.rho_sub);
+  std::vector<FlatRegion> flat;
+  const float min_cos = std::cos(kRegionDegrees * static_cast<float>(M_PI) / 180.0f);
+  const auto joins = [&](std::uint32_t j, std::uint32_t member, std::uint32_t) { return normals[j].dot(normals[member]) >= min_cos; };
+  // A plane crosses at most sqrt(3) voxels per spacing^2 (below).
+  const auto fewest = static_cast<std::size_t>(least_area / (spacing * spacing));
+  for (auto members : growRegions(points, std::vector<char>(points.size(), 1), kLinkSpacings * spacing, joins)) {
+    if (members.size() < std::max<std::size_t>(fewest, 3)) continue;
+    for (std::uint32_t& i : members) i = left[i];
+    const PlaneFit plane = fitPlane(scene.points, members, m.p.viewpoint - scene.points[members.front()]);
+    // One point per voxel of side `spacing`: a plane crosses |nx| + |ny| + |nz| voxels per spacing^2.
+    const float area = static_cast<float>(members.size()) * spacing * spacing / plane.normal.cwiseAbs().sum();
+    if (area >= least_area && plane.rms <= m.p.plane_tolerance) flat.push_back({members, plane, area});
+  }
+  return flat;
+}
+
+/// Whether a region's spread along an axis is the face's, within a sampled region's error.
+bool alike(float region, float face) { return region >= kLeastSpreadShare * face && region <= face / kLeastSpreadShare; }
+
+/// A laid pose of a face, turned about its normal, with its support.
+struct Laid {
+  Pose pose;
+  float support = -1;
+};
+
+/// The face laid on the region in coarse steps of spin; none when the region's size or extent is not the face's.
+std::vector<Laid> coarseLaid(const Matcher& m, const PreparedModel& coarse, const ModelFace& face, const FlatRegion& region) {
+  std::vector<Laid> laid;
+  if (region.area < kLeastAreaShare * face.area || region.area > kMostAreaShare * face.area) return laid;
+  if (!alike(region.plane.spread[0], face.spread[0]) || !alike(region.plane.spread[1], face.spread[1])) return laid;
+  const int spins = face.turns ? kSpins : 1;
+  for (int k = 0; k < spins; ++k) {
+    const Pose pose = facePose(face, region.plane, kFullTurn * static_cast<float>(k) / kSpins, Vec3::Zero());
+    laid.push_back({pose, support(m, coarse, pose)});
+  }
+  return laid;
+}
+
+/// `start` turned about the region's normal and shifted along its plane in fine steps while the
+/// support grows.
+Laid finer(const Matcher& m, const PreparedModel& judged, const PlaneFit& plane, Laid start) {
+  const Vec3 u = plane.normal.unitOrthogonal(), w = plane.normal.cross(u);
+  const float d_spin = kFineDegrees * static_cast<float>(M_PI) / 180.0f, d_shift = kFineShiftTolerances * m.p.verify_tolerance;
+  for (int step = 0; step < kMostFineSteps; ++step) {
+    bool better = false;
+    for (int move = 0; move < 6; ++move) {
+      Pose pose = start.pose;
+      const float sign = move % 2 == 0 ? 1.0f : -1.0f;
+      if (move < 2) {  // a turn about the normal through the face's centre on the plane
+        const Eigen::Matrix3f turn = Eigen::AngleAxisf(sign * d_spin, plane.normal).toRotationMatrix();
+        pose.linear() = turn * pose.linear();
+        pose.translation() = plane.centre + turn * (pose.translation() - plane.centre);
+      } else {
+        pose.translation() += sign * d_shift * (move < 4 ? u : w);
+      }
+      if (const float v = support(m, judged, pose); v > start.support) {
+        start = {pose, v};
+        better = true;
+      }
+    }
+    if (!better) break;
+  }
+  return start;
+}
+
+/// The laid poses of the faces on `region`: each face's best kShortlist judged again on
+/// `judged`, best first; empty when no face fits the region.
+std::vector<Laid> shortlist(const Matcher& m, const PreparedModel& coarse, const PreparedModel& judged,
+                            const std::vector<ModelFace>& faces, const FlatRegion& region) {
+  const auto better = [](const Laid& a, const Laid& b) { return a.support > b.support; };
+  std::vector<Laid> kept;
+  for (const ModelFace& face : faces) {
+    std::vector<Laid> laid = coarseLaid(m, coarse, face, region);
+    std::stable_sort(laid.begin(), laid.end(), better);  // ties in the order laid
+    laid.resize(std::min(laid.size(), kShortlist));
+    for (Laid& l : laid) kept.push_back({l.pose, support(m, judged, l.pose)});
+  }
+  std::stable_sort(kept.begin(), kept.end(), better);
+  return kept;
+}
+
+/// The shortlist's best pose refined, or none when the scan supports another face, or the same
+/// turned otherwise (not by the part's symmetry), more than kMostRivalShare as well as it: a
+/// block's square faces, a plate's two sides look alike from one side, and the part behind is hidden.
+std::optional<Pose> unrivalled(const Matcher& m, const ModelShape& shape, const PreparedModel& judged, const PlaneFit& plane,
+                               const std::vector<Laid>& laid) {
+  if (laid.empty()) return std::nullopt;
+  const Laid best = finer(m, judged, plane, laid.front());
+  if (best.support < m.p.min_score) return std::nullopt;
+  const float limit = kMostRivalShare * best.support;
+  for (const Laid& l : laid)
+    if (l.support > limit && !shape.samePose(l.pose, best.pose)) return std::nullopt;
+  Pose pose = best.pose;
+  if (m.p.refine) pose = refinePose(pose, m.icp_model, m.scan.points, m.scan_grid, m.icpParams(m.p.icp_iterations));
+  return pose;
+}
+
+}  // namespace
+
+std::vector<ModelFace> flatFaces(const Points& points, const Points& normals, float sample_radius, float area_per_point,
+                                 float min_area, const Vec3* revolution_axis) {
+  std::vector<ModelFace> faces;
+  const std::vector<char> all(points.size(), 1);
+  const float min_cos = std::cos(kModelFaceDegrees * static_cast<float>(M_PI) / 180.0f);
+  // One plane: a face's normals and points those of its seed's plane (a fillet's normals turn
+  // little from one point to the next, and would link parallel faces).
+  const auto joins = [&](std::uint32_t j, std::uint32_t, std::uint32_t seed) {
+    return normals[j].dot(normals[seed]) >= min_cos && std::abs(normals[seed].dot(points[j] - points[seed])) <= kFaceFlatness * sample_radius;
+  };
+  for (const auto& members : growRegions(points, all, 2.0f * sample_radius, joins)) {
+    const float area = static_cast<float>(members.size()) * area_per_point;
+    if (area < min_area) continue;
+    Vec3 mean = Vec3::Zero();
+    for (std::uint32_t i : members) mean += normals[i];
+    const PlaneFit plane = fitPlane(points, members, mean);
+    if (plane.rms > kFaceFlatness * sample_radius) continue;  // a gently curved surface, not a face
+    const bool about_axis = revolution_axis != nullptr && std::abs(revolution_axis->dot(plane.normal)) >= kAxisCosine;
+    faces.push_back({plane.normal, plane.centre, area, !about_axis, {plane.spread[0], plane.spread[1]}});
+  }
+  return faces;
+}
+
+void addFaceDetections(const std::vector<ModelFace>& faces, const Matcher& m, const ModelShape& shape, MatchState& state) {
+  if (faces.empty()) return;
+  const StageSettings& p = m.p;
+  const auto shareOf = [&](std::size_t count) {
+    OrientedPoints few = evenShare(m.scored_model.points(), m.scored_model.normals(), count);
+    return PreparedModel(std::move(few.points), std::move(few.normals));
+  };
+  const PreparedModel coarse = shareOf(kCoarsePoints), judged = shareOf(kJudgedPoints);
+  float least = INFINITY;
+  for (const ModelFace& f : faces) least = std::min(least, f.area);
+  for (const FlatRegion& region : flatRegions(m, state.removed, kLeastAreaShare * least)) {
+    const auto gone = std::count_if(region.members.begin(), region.members.end(), [&](std::uint32_t i) { return state.removed[i] != 0; });
+    if (2 * static_cast<std::size_t>(gone) > region.members.size()) continue;  // a detection before explains it
+    const std::optional<Pose> pose = unrivalled(m, shape, judged, region.plane, shortlist(m, coarse, judged, faces, region));
+    if (!pose || state.refoundAt(*pose, shape, p.refound_share)) continue;
+    Hypothesis h;
+    const Evidence e = m.scoredEvidence(*pose, h.support);
+    h.detection.pose = *pose;
+    h.detection.score = e.score();
+    if (h.detection.score < p.min_score || e.visibleSupport() < p.min_visible_support || m.outlineContinued(*pose)) continue;
+    std::sort(h.support.begin(), h.support.end());
+    h.support.erase(std::unique(h.support.begin(), h.support.end()), h.support.end());
+    const bool remove = h.detection.score >= p.removal_score;
+    if (remove || h.detection.score >= p.explain_score) state.found.push_back(*pose);
+    if (remove) removeExplained(m.scene.points, *pose, shape, p.sigma_dist, state.removed);
+    state.hypotheses.push_back(std::move(h));
+  }
+}
+
+}  // namespace binpose
