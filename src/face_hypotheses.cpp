@@ -1,8 +1,6 @@
 // Beyond the thesis: poses of a copy seen by one flat face (face_hypotheses.hpp).
 #include "face_hypotheses.hpp"
 
-#include "removal.hpp"
-
 #include <binpose/point_grid.hpp>
 
 #include <Eigen/Eigenvalues>
@@ -29,8 +27,8 @@ constexpr float kLinkSpacings = 2.5f;
 constexpr float kLeastAreaShare = 0.6f, kMostAreaShare = 1.3f;
 /// ... and its extent along each principal axis (RMS from the centre) within this share of the face's.
 constexpr float kLeastSpreadShare = 0.75f;
-/// The turn about the face's normal: first in steps of 5 degrees, then in steps of 1 degree and of
-/// a fifth of the verification tolerance along the face, while the support grows.
+/// The turn about the face's normal: first in kSpins steps, then in steps of kFineDegrees and
+/// shifts of kFineShiftTolerances verification tolerances along the face while the support grows.
 constexpr float kFullTurn = static_cast<float>(2 * M_PI);
 constexpr int kSpins = 72;  // 5 degrees
 /// An axis of revolution within about 8 degrees of a face's normal turns the face onto itself.
@@ -282,10 +280,8 @@ void addFaceDetections(const std::vector<ModelFace>& faces, const Matcher& m, co
     if (h.detection.score < p.min_score || e.visibleSupport() < p.min_visible_support || m.outlineContinued(*pose)) continue;
     std::sort(h.support.begin(), h.support.end());
     h.support.erase(std::unique(h.support.begin(), h.support.end()), h.support.end());
-    const bool remove = h.detection.score >= p.removal_score;
-    if (remove || h.detection.score >= p.explain_score) state.found.push_back(*pose);
-    if (remove) removeExplained(m.scene.points, *pose, shape, p.sigma_dist, state.removed);
-    state.hypotheses.push_back(std::move(h));
+    state.accept(std::move(h), p, shape, m.scene.points);
+    if (state.enough) return;
   }
 }
 

@@ -51,6 +51,15 @@ bool MatchState::seen(const Pose& pose, const ModelShape& shape, float tried_sha
          std::any_of(tried.begin(), tried.end(), [&](const Pose& t) { return shape.samePose(pose, t, tried_share); });
 }
 
+void MatchState::accept(Hypothesis h, const StageSettings& p, const ModelShape& shape, const Points& scene) {
+  const Pose pose = h.detection.pose;
+  const bool remove = h.detection.score >= p.removal_score;
+  if (remove || h.detection.score >= p.explain_score) found.push_back(pose);
+  if (remove) removeExplained(scene, pose, shape, p.sigma_dist, removed);  // 5.2.6
+  hypotheses.push_back(std::move(h));
+  if (remove && p.max_instances > 0 && ++confident >= p.max_instances) enough = true;
+}
+
 bool MatchState::refoundAt(const Pose& pose, const ModelShape& shape, float refound_share) const {
   return refound_share > 0 &&
          std::any_of(found.begin(), found.end(), [&](const Pose& f) { return shape.samePose(pose, f, refound_share); });
@@ -212,11 +221,7 @@ void GroupSchedule::take(GroupOutcome& o) {
   if (p_.verify && o.all_voters && o.evidence.scoreWithoutGrazing() < p_.retry_min_score) return;  // see retry_min_score
   if (p_.verify && o.evidence.visibleSupport() < p_.min_visible_support) return;  // met by the scan only in passing
   if (p_.verify && matcher_.outlineContinued(det.pose)) return;  // a face laid on a larger surface
-  const bool remove = det.score >= p_.removal_score;
-  if (remove || det.score >= p_.explain_score) s.found.push_back(det.pose);
-  if (remove) removeExplained(matcher_.scene.points, det.pose, shape_, p_.sigma_dist, s.removed);  // 5.2.6
-  s.hypotheses.push_back(std::move(o.hypothesis));
-  if (remove && p_.max_instances > 0 && ++s.confident >= p_.max_instances) s.enough = true;
+  s.accept(std::move(o.hypothesis), p_, shape_, matcher_.scene.points);
 }
 
 }  // namespace binpose

@@ -24,6 +24,9 @@ struct MatchState {
 
   /// Another pose of an object already found, or close to a clique pose already verified.
   [[nodiscard]] bool seen(const Pose& pose, const ModelShape& shape, float tried_share) const;
+  /// A verified detection taken: a found object from explain_score, its scene points removed
+  /// from removal_score (5.2.6), counted towards max_instances.
+  void accept(Hypothesis h, const StageSettings& p, const ModelShape& shape, const Points& scene);
   /// Another pose of an object already found, within refound_share of the same-place tolerance.
   [[nodiscard]] bool refoundAt(const Pose& pose, const ModelShape& shape, float refound_share) const;
 };

@@ -17,7 +17,7 @@ namespace binpose {
 struct Detection {
   Pose pose;               ///< model -> scan frame: p_scan = R p_model + t, mm
   float score = 0;         ///< (supported - contradicted) / sensor-facing model points (see Evidence)
-  int correspondences = 0; ///< size of the accepted clique |C|
+  int correspondences = 0; ///< size of the accepted clique |C| (0: found by a flat face, face_hypotheses)
   float rms = 0;           ///< residual of the clique's closed-form fit, mm
 };
 
