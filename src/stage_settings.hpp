@@ -65,8 +65,9 @@ struct StageSettings : DetectionParams {
   float min_visible_support = 0.4f;
   /// A detection whose visible outline the scan's surface goes on past, along the part's own
   /// tangent planes, at more than this share of its judged steps is dropped
-  /// (SceneEvidence::outline: one face laid on a larger surface; 1: no test).
-  float max_outline_share = 0.4f;
+  /// (SceneEvidence::outline: one face laid on a larger surface; 1: no test). Right poses reach
+  /// 0.5 where a copy lies flush against another.
+  float max_outline_share = 0.55f;
   /// After the sub-groups, the scene's flat regions that no detection explains, each about as large
   /// as a flat face of the model, are tried as that face (face_hypotheses.hpp): a copy that shows
   /// one flat face only gives no clique.
