@@ -1,13 +1,14 @@
 // Beyond the thesis: poses of a copy seen by one flat face (face_hypotheses.hpp).
 #include "face_hypotheses.hpp"
 
-#include <binpose/point_grid.hpp>
+#include <binpose/planes.hpp>
 
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <numeric>
 #include <optional>
 
 namespace binpose {
@@ -74,31 +75,12 @@ PlaneFit fitPlane(const Points& points, const std::vector<std::uint32_t>& member
   return fit;
 }
 
-/// Regions of points linked within `link`, grown from seeds in index order: a neighbour j of a
-/// member joins when joins(j, member, seed); `usable` points only. Deterministic.
-template <class Joins>
-std::vector<std::vector<std::uint32_t>> growRegions(const Points& points, const std::vector<char>& usable, float link, Joins joins) {
-  std::vector<std::vector<std::uint32_t>> regions;
-  if (points.empty()) return regions;
-  const PointGrid grid(points);
-  std::vector<char> taken(points.size(), 0);
-  std::vector<std::uint32_t> near;
-  for (std::uint32_t seed = 0; seed < points.size(); ++seed) {
-    if (taken[seed] || !usable[seed]) continue;
-    std::vector<std::uint32_t> region{seed};
-    taken[seed] = 1;
-    for (std::size_t next = 0; next < region.size(); ++next) {
-      grid.within(points[region[next]], link, near);
-      std::sort(near.begin(), near.end());
-      for (std::uint32_t j : near)
-        if (!taken[j] && usable[j] && joins(j, region[next], seed)) {
-          taken[j] = 1;
-          region.push_back(j);
-        }
-    }
-    std::sort(region.begin(), region.end());
-    regions.push_back(std::move(region));
-  }
+/// The patches of points[members] linked within `link` where `joins` says so (planes.hpp's flood
+/// fill), each sorted: one order of the sums, whatever the fill's.
+std::vector<std::vector<std::uint32_t>> regionsOf(const Points& points, const std::vector<std::uint32_t>& members, float link,
+                                                 const detail::Joins& joins) {
+  std::vector<std::vector<std::uint32_t>> regions = detail::floodPatches(points, members, link, joins);
+  for (auto& region : regions) std::sort(region.begin(), region.end());
   return regions;
 }
 
@@ -128,22 +110,16 @@ struct FlatRegion {
 std::vector<FlatRegion> flatRegions(const Matcher& m, const std::vector<char>& removed, float least_area) {
   const PreparedScene& scene = m.scene;
   std::vector<std::uint32_t> left;  // the points no detection explains
-  Points points, normals;
   for (std::uint32_t i = 0; i < scene.points.size(); ++i)
-    if (!removed[i]) {
-      left.push_back(i);
-      points.push_back(scene.points[i]);
-      normals.push_back(scene.normals[i]);
-    }
+    if (!removed[i]) left.push_back(i);
   const float spacing = 1.0f / std::sqrt(m.p.rho_sub);
   std::vector<FlatRegion> flat;
   const float min_cos = std::cos(kRegionDegrees * static_cast<float>(M_PI) / 180.0f);
-  const auto joins = [&](std::uint32_t j, std::uint32_t member, std::uint32_t) { return normals[j].dot(normals[member]) >= min_cos; };
-  // A plane crosses at most sqrt(3) voxels per spacing^2 (below).
+  const auto joins = [&](std::uint32_t b, std::uint32_t a, std::uint32_t) { return scene.normals[b].dot(scene.normals[a]) >= min_cos; };
+  // A plane crosses at least one voxel per spacing^2 (below): fewer points cannot make the area.
   const auto fewest = static_cast<std::size_t>(least_area / (spacing * spacing));
-  for (auto members : growRegions(points, std::vector<char>(points.size(), 1), kLinkSpacings * spacing, joins)) {
+  for (const auto& members : regionsOf(scene.points, left, kLinkSpacings * spacing, joins)) {
     if (members.size() < std::max<std::size_t>(fewest, 3)) continue;
-    for (std::uint32_t& i : members) i = left[i];
     const PlaneFit plane = fitPlane(scene.points, members, m.p.viewpoint - scene.points[members.front()]);
     // One point per voxel of side `spacing`: a plane crosses |nx| + |ny| + |nz| voxels per spacing^2.
     const float area = static_cast<float>(members.size()) * spacing * spacing / plane.normal.cwiseAbs().sum();
@@ -238,14 +214,15 @@ std::optional<Pose> unrivalled(const Matcher& m, const ModelShape& shape, const 
 std::vector<ModelFace> flatFaces(const Points& points, const Points& normals, float sample_radius, float area_per_point,
                                  float min_area, const Vec3* revolution_axis) {
   std::vector<ModelFace> faces;
-  const std::vector<char> all(points.size(), 1);
+  std::vector<std::uint32_t> all(points.size());
+  std::iota(all.begin(), all.end(), 0u);
   const float min_cos = std::cos(kModelFaceDegrees * static_cast<float>(M_PI) / 180.0f);
   // One plane: a face's normals and points those of its seed's plane (a fillet's normals turn
   // little from one point to the next, and would link parallel faces).
-  const auto joins = [&](std::uint32_t j, std::uint32_t, std::uint32_t seed) {
-    return normals[j].dot(normals[seed]) >= min_cos && std::abs(normals[seed].dot(points[j] - points[seed])) <= kFaceFlatness * sample_radius;
+  const auto joins = [&](std::uint32_t b, std::uint32_t, std::uint32_t seed) {
+    return normals[b].dot(normals[seed]) >= min_cos && std::abs(normals[seed].dot(points[b] - points[seed])) <= kFaceFlatness * sample_radius;
   };
-  for (const auto& members : growRegions(points, all, 2.0f * sample_radius, joins)) {
+  for (const auto& members : regionsOf(points, all, 2.0f * sample_radius, joins)) {
     const float area = static_cast<float>(members.size()) * area_per_point;
     if (area < min_area) continue;
     Vec3 mean = Vec3::Zero();
@@ -265,10 +242,12 @@ void addFaceDetections(const std::vector<ModelFace>& faces, const Matcher& m, co
     OrientedPoints few = evenShare(m.scored_model.points(), m.scored_model.normals(), count);
     return PreparedModel(std::move(few.points), std::move(few.normals));
   };
-  const PreparedModel coarse = shareOf(kCoarsePoints), judged = shareOf(kJudgedPoints);
   float least = INFINITY;
   for (const ModelFace& f : faces) least = std::min(least, f.area);
-  for (const FlatRegion& region : flatRegions(m, state.removed, kLeastAreaShare * least)) {
+  const std::vector<FlatRegion> regions = flatRegions(m, state.removed, kLeastAreaShare * least);
+  if (regions.empty()) return;
+  const PreparedModel coarse = shareOf(kCoarsePoints), judged = shareOf(kJudgedPoints);
+  for (const FlatRegion& region : regions) {
     const auto gone = std::count_if(region.members.begin(), region.members.end(), [&](std::uint32_t i) { return state.removed[i] != 0; });
     if (2 * static_cast<std::size_t>(gone) > region.members.size()) continue;  // a detection before explains it
     const std::optional<Pose> pose = unrivalled(m, shape, judged, region.plane, shortlist(m, coarse, judged, faces, region));
@@ -277,9 +256,7 @@ void addFaceDetections(const std::vector<ModelFace>& faces, const Matcher& m, co
     const Evidence e = m.scoredEvidence(*pose, h.support);
     h.detection.pose = *pose;
     h.detection.score = e.score();
-    if (h.detection.score < p.min_score || e.visibleSupport() < p.min_visible_support || m.outlineContinued(*pose)) continue;
-    std::sort(h.support.begin(), h.support.end());
-    h.support.erase(std::unique(h.support.begin(), h.support.end()), h.support.end());
+    if (!m.stands(*pose, h.detection.score, e)) continue;
     state.accept(std::move(h), p, shape, m.scene.points);
     if (state.enough) return;
   }

@@ -217,10 +217,8 @@ void GroupSchedule::take(GroupOutcome& o) {
     return;
   }
   const Detection det = o.hypothesis.detection;
-  if (p_.verify && det.score < p_.min_score) return;
   if (p_.verify && o.all_voters && o.evidence.scoreWithoutGrazing() < p_.retry_min_score) return;  // see retry_min_score
-  if (p_.verify && o.evidence.visibleSupport() < p_.min_visible_support) return;  // met by the scan only in passing
-  if (p_.verify && matcher_.outlineContinued(det.pose)) return;  // a face laid on a larger surface
+  if (p_.verify && !matcher_.stands(det.pose, det.score, o.evidence)) return;
   s.accept(std::move(o.hypothesis), p_, shape_, matcher_.scene.points);
 }
 

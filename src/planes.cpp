@@ -17,38 +17,6 @@
 namespace binpose {
 namespace {
 
-/// Connected patches of `members` (links shorter than `link`) by a flood fill through a grid of
-/// them: any box, any link.
-std::vector<std::vector<std::uint32_t>> floodPatches(const Points& points, const std::vector<std::uint32_t>& members, float link) {
-  const std::size_t n = members.size();
-  std::vector<std::vector<std::uint32_t>> out;
-  Points sub;
-  for (const auto i : members) sub.push_back(points[i]);
-  const PointGrid grid(sub, link);
-  std::vector<char> seen(n, 0);
-  std::vector<std::uint32_t> stack, found;
-  for (std::uint32_t s = 0; s < n; ++s) {
-    if (seen[s]) continue;
-    std::vector<std::uint32_t> patch;
-    seen[s] = 1;
-    stack.assign(1, s);
-    while (!stack.empty()) {
-      const std::uint32_t a = stack.back();
-      stack.pop_back();
-      patch.push_back(members[a]);
-      grid.within(sub[a], link, found);
-      for (const auto b : found)
-        if (!seen[b]) {
-          seen[b] = 1;
-          stack.push_back(b);
-        }
-    }
-    out.push_back(std::move(patch));
-  }
-  return out;
-}
-
-
 /// Union-find over n items; a set's root is its smallest item.
 struct DisjointSets {
   explicit DisjointSets(std::size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0u); }
@@ -80,6 +48,36 @@ struct DisjointSets {
 }  // namespace
 
 namespace detail {
+
+std::vector<std::vector<std::uint32_t>> floodPatches(const Points& points, const std::vector<std::uint32_t>& members, float link,
+                                                     const Joins& joins) {
+  const std::size_t n = members.size();
+  std::vector<std::vector<std::uint32_t>> out;
+  Points sub;
+  for (const auto i : members) sub.push_back(points[i]);
+  const PointGrid grid(sub, link);
+  std::vector<char> seen(n, 0);
+  std::vector<std::uint32_t> stack, found;
+  for (std::uint32_t s = 0; s < n; ++s) {
+    if (seen[s]) continue;
+    std::vector<std::uint32_t> patch;
+    seen[s] = 1;
+    stack.assign(1, s);
+    while (!stack.empty()) {
+      const std::uint32_t a = stack.back();
+      stack.pop_back();
+      patch.push_back(members[a]);
+      grid.within(sub[a], link, found);
+      for (const auto b : found)
+        if (!seen[b] && (!joins || joins(members[b], members[a], members[s]))) {
+          seen[b] = 1;
+          stack.push_back(b);
+        }
+    }
+    out.push_back(std::move(patch));
+  }
+  return out;
+}
 
 std::vector<std::vector<std::uint32_t>> linkedPatches(const Points& points, const std::vector<std::uint32_t>& members, float link,
                                                       const Vec3& normal) {

@@ -142,7 +142,16 @@ IcpParams Matcher::icpParams(int iterations) const {
 }
 
 Evidence Matcher::scoredEvidence(const Pose& pose, std::vector<std::uint32_t>& support) const {
-  return evidence.evaluate(pose, scored_model, p.verify_tolerance, db.model().sample_radius, &support);
+  const Evidence e = evidence.evaluate(pose, scored_model, p.verify_tolerance, db.model().sample_radius, &support);
+  std::sort(support.begin(), support.end());
+  support.erase(std::unique(support.begin(), support.end()), support.end());
+  return e;
+}
+
+bool Matcher::stands(const Pose& pose, float score, const Evidence& e) const {
+  if (score < p.min_score) return false;
+  if (e.visibleSupport() < p.min_visible_support) return false;  // met by the scan only in passing
+  return !outlineContinued(pose);                                 // a face laid on a larger surface
 }
 
 bool Matcher::outlineContinued(const Pose& pose) const {
@@ -237,11 +246,6 @@ void Matcher::screenRefineScore(Slot& s) const {
   s.outcome.evidence = scoredEvidence(det.pose, h.support);
   det.score = s.outcome.evidence.score();
   if (other) verifyOther(s, *other);  // both refined and scored: the better is taken (GroupSchedule::take)
-  for (std::vector<std::uint32_t>* support : {&h.support, s.outcome.other ? &s.outcome.other->hypothesis.support : nullptr})
-    if (support != nullptr) {
-      std::sort(support->begin(), support->end());
-      support->erase(std::unique(support->begin(), support->end()), support->end());
-    }
 }
 
 }  // namespace binpose

@@ -100,8 +100,13 @@ struct Matcher {
   void verify(Slot& s) const;
   /// ICP of this many steps against the scan, gated and scored as verification does.
   IcpParams icpParams(int iterations) const;
-  /// The final score's evidence for a pose on all model points, the supporting scan points into `support`.
+  /// The final score's evidence for a pose on all model points, the supporting scan points added
+  /// to `support` (sorted, distinct).
   Evidence scoredEvidence(const Pose& pose, std::vector<std::uint32_t>& support) const;
+  /// Whether a verified pose scoring `score` with evidence `e` stands as a detection: at least
+  /// min_score, supported on min_visible_support of what the scan could show, and its outline
+  /// not continued by the scan (outlineContinued).
+  [[nodiscard]] bool stands(const Pose& pose, float score, const Evidence& e) const;
   /// Whether the scan's surface goes on past the posed part's outline at more than
   /// max_outline_share of it (SceneEvidence::outline).
   [[nodiscard]] bool outlineContinued(const Pose& pose) const;

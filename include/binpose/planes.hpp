@@ -61,6 +61,16 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
                               std::vector<Plane>* removed = nullptr, const LateNormals* late = nullptr);
 
 namespace detail {
+/// A link from patch point a to its neighbour b, both indices into the points, in the patch
+/// grown from `seed`: whether b joins the patch.
+using Joins = std::function<bool(std::uint32_t b, std::uint32_t a, std::uint32_t seed)>;
+/// The connected patches of points[members] (links shorter than `link`, kept where `joins` says
+/// so; every link when it is empty) by a flood fill through a grid of them: lists of point
+/// indices, each in the order reached, the patches in the order of their first member in
+/// `members`. For a `joins` that depends on a and b only through their own test (or on b and
+/// the seed), a patch is the same set whatever the order of the fill.
+std::vector<std::vector<std::uint32_t>> floodPatches(const Points& points, const std::vector<std::uint32_t>& members, float link,
+                                                     const Joins& joins = {});
 /// The connected patches of points[members] (pairs strictly closer than `link`, by the squared
 /// distance x^2 + (y^2 + z^2) of their difference, in float): lists of point indices, in the
 /// order of their first member in `members`. largePlanes's split of a plane's inliers; `normal`
