@@ -91,7 +91,7 @@ int runTrain(const TrainOptions& o) {
 
 struct DetectOptions {
   std::string model, scene, intrinsics, image_id, out, preset = "default", params_file, render, export_ply;
-  std::string units = "mm", model_units = "mm";
+  std::string units = "auto", model_units = "mm";
   std::optional<int> max_instances, C_n, k_normals;
   std::optional<float> r, rho_sub, eta, e_gmax, sigma_dist, min_score;
   std::optional<bool> refine, verify, symmetry;
@@ -114,7 +114,9 @@ void addDetect(CLI::App& app, DetectOptions& o) {
   d->add_option("--preset", o.preset, "Parameter preset: default, or thesis (chapter 5 as written); fast: an alias of default")
       ->check(CLI::IsMember({"default", "fast", "thesis"}))->capture_default_str();
   d->add_option("--params", o.params_file, "JSON file of parameters (absolute units, mm), applied after the preset");
-  d->add_option("--units", o.units, "Length unit of the scene file: mm or m")->check(CLI::IsMember({"mm", "m"}))->capture_default_str();
+  d->add_option("--units", o.units, "Length unit of the scene file: mm, m, or auto (mm, unless the scene spans less than half the model's diameter: then m, with a note)")
+      ->check(CLI::IsMember({"auto", "mm", "m"}))
+      ->capture_default_str();
   d->add_option("--model-units", o.model_units, "Length unit of a model file trained on the fly")
       ->check(CLI::IsMember({"mm", "m"}))->capture_default_str();
   d->add_option("--model-points", o.model_points, "Model points when training on the fly")->capture_default_str();
@@ -183,19 +185,38 @@ binpose::ModelDatabase loadOrTrain(const DetectOptions& o) {
   return binpose::ModelDatabase::build(model, binpose::defaultQuantization(model.diameter));
 }
 
-binpose::PointCloud loadScene(const DetectOptions& o) {
+/// A scene spanning less than this share of the model's diameter cannot hold the part.
+constexpr float kLeastSceneShare = 0.5f;
+
+/// The diagonal of the scan's bounding box, in its units (0 when it has no finite point).
+float extentOf(const binpose::PointCloud& scan) {
+  binpose::Vec3 lo, hi;
+  return binpose::bounds(scan.points, lo, hi) ? (hi - lo).norm() : 0.0f;
+}
+
+/// The scene, in millimetres. With --units auto a scene file (not a depth image, whose scale the
+/// camera file gives) that spans less than half the model's diameter cannot hold the part: it is
+/// one in metres, as many sensors' software writes, and is read again so, with a note.
+binpose::PointCloud loadScene(const DetectOptions& o, float diameter) {
   if (o.scene.size() > 4 && o.scene.substr(o.scene.size() - 4) == ".png") {
     if (o.intrinsics.empty()) throw binpose::Error(fmt::format("{}: a depth image needs --intrinsics", o.scene));
     return binpose::readDepthPng(o.scene, binpose::readIntrinsics(o.intrinsics, o.image_id));
   }
-  return binpose::readCloud(o.scene, binpose::unitScale(binpose::parseUnits(o.units)));
+  if (o.units != "auto") return binpose::readCloud(o.scene, binpose::unitScale(binpose::parseUnits(o.units)));
+  binpose::PointCloud scan = binpose::readCloud(o.scene, 1.0);
+  const float extent = extentOf(scan);
+  if (extent > 0 && extent < kLeastSceneShare * diameter) {
+    fmt::print(stderr, "note: the scene spans {:.3g} units, less than half the model's {:.3g} mm: reading it in metres (--units mm keeps millimetres)\n",
+               extent, diameter);
+    scan = binpose::readCloud(o.scene, binpose::unitScale(binpose::Units::Metres));
+  }
+  return scan;
 }
 
 void warnAboutUnits(const binpose::PointCloud& scan, float diameter) {
-  binpose::Vec3 lo, hi;
-  if (!binpose::bounds(scan.points, lo, hi)) return;
-  const float extent = (hi - lo).norm();
-  if (extent < 0.5f * diameter)
+  const float extent = extentOf(scan);
+  if (extent <= 0) return;
+  if (extent < kLeastSceneShare * diameter)
     fmt::print(stderr, "warning: the scene spans {:.3g} mm but the model is {:.3g} mm across: is the scene in metres? (use --units m)\n",
                extent, diameter);
   else if (extent > 1000.0f * diameter)
@@ -233,8 +254,8 @@ int runDetect(const DetectOptions& o) {
   std::optional<tbb::global_control> threads;
   if (o.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(o.threads));
   const binpose::ModelDatabase db = loadOrTrain(o);
-  const binpose::PointCloud scan = loadScene(o);
   const float diameter = db.model().diameter;
+  const binpose::PointCloud scan = loadScene(o, diameter);
   warnAboutUnits(scan, diameter);
   const binpose::DetectionParams params = detectParams(o, diameter, scan);
   const binpose::Detector detector(db, params);

@@ -2,6 +2,7 @@
 // Arrays are read in place where their layout allows; the GIL is released while detecting. Every
 // binpose::Error (a bad file, value or array) becomes a ValueError with the CLI's message.
 #include <binpose/detector.hpp>
+#include <binpose/geometry.hpp>
 #include <binpose/io.hpp>
 #include <binpose/model.hpp>
 #include <binpose/model_database.hpp>
@@ -174,6 +175,7 @@ class PyDetector {
         throw Error(fmt::format("normals has {} rows for {} points", scan.normals.size(), scan.points.size()));
     }
     dropNonFinite(scan);
+    warnIfMetres(scan);
     return run(scan, viewpoint);
   }
 
@@ -192,6 +194,18 @@ class PyDetector {
   [[nodiscard]] py::dict params() const { return py::module_::import("json").attr("loads")(toJson(params_)); }
 
  private:
+  /// Points spanning less than half the model's diameter cannot hold the part: most likely
+  /// metres (binpose works in millimetres), as many sensors' software gives them.
+  void warnIfMetres(const PointCloud& scan) const {
+    Vec3 lo, hi;
+    if (!bounds(scan.points, lo, hi)) return;
+    const float extent = (hi - lo).norm(), diameter = db_->model().diameter;
+    if (extent <= 0 || extent >= 0.5f * diameter) return;
+    const std::string text =
+        fmt::format("the points span {:.3g} but the model is {:.3g} mm across: are they in metres? (binpose works in millimetres)", extent, diameter);
+    if (PyErr_WarnEx(PyExc_UserWarning, text.c_str(), 1) < 0) throw py::error_already_set();  // warnings set to errors
+  }
+
   static void dropNonFinite(PointCloud& scan) {
     std::size_t kept = 0;
     for (std::size_t i = 0; i < scan.points.size(); ++i) {

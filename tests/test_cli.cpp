@@ -124,9 +124,22 @@ TEST(DetectCli, EmptySceneIsZeroDetectionsAndExitZero) {
   EXPECT_EQ(nlohmann::json::parse(test::readAll(out))["detections"].size(), 0u);
 }
 
-TEST(DetectCli, SceneInMetresGivenAsMillimetresWarns) {
+// PCL's milk frame is in metres, as many sensors' software writes: by default (--units auto) it
+// spans less than half the carton's diameter, so it is read in metres, with a note, and gives the
+// detections that --units m gives; --units mm keeps millimetres and warns.
+TEST(DetectCli, SceneInMetresIsReadInMetresUnlessMillimetresAreGiven) {
   REQUIRE_DATA("pcl_milk/milk.pcd");
-  const CliRun run = runCli(fmt::format("detect --model {} --scene {}", capDatabase(), dataPath("pcl_milk/milk.pcd")));
+  const std::string model = dataPath("pcl_milk/milk.pcd"), scene = dataPath("pcl_milk/milk_cartoon_all_small_clorox.pcd");
+  const std::string db = test::tempPath("milk.bpdb"), by_auto = test::tempPath("milk_auto.json"), by_m = test::tempPath("milk_m.json");
+  ASSERT_EQ(runCli(fmt::format("train --model {} --out {} --units m --points 1000", model, db)).code, 0);
+  CliRun run = runCli(fmt::format("detect --model {} --scene {} --out {}", db, scene, by_auto));
+  ASSERT_EQ(run.code, 0) << run.err;
+  EXPECT_NE(run.err.find("reading it in metres"), std::string::npos) << run.err;
+  ASSERT_EQ(runCli(fmt::format("detect --model {} --scene {} --units m --out {}", db, scene, by_m)).code, 0);
+  const auto auto_json = nlohmann::json::parse(test::readAll(by_auto)), m_json = nlohmann::json::parse(test::readAll(by_m));
+  ASSERT_GE(auto_json["detections"].size(), 1u);
+  EXPECT_EQ(auto_json["detections"], m_json["detections"]);
+  run = runCli(fmt::format("detect --model {} --scene {} --units mm", db, scene));
   EXPECT_EQ(run.code, 0) << run.out;
   EXPECT_NE(run.err.find("--units m"), std::string::npos) << run.err;
 }

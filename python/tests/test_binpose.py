@@ -3,6 +3,7 @@ CLI's simulator, exact poses), the CLI's own answers on the same image, and bad 
 import json
 import os
 import subprocess
+import warnings
 
 import numpy as np
 import pytest
@@ -103,6 +104,21 @@ def test_detect_points_drops_non_finite_rows(caps):
     again = detector.detect(with_nan, viewpoint=(0, 0, 0))
     assert [d.pose.tolist() for d in again] == [d.pose.tolist() for d in detector.detect(points)]
     assert len(detector.detect(np.zeros((0, 3)))) == 0
+
+
+def test_points_in_metres_warn(caps):
+    """binpose works in millimetres: the caps' scan given in metres spans less than half a cap,
+    so detect() warns, and finds nothing; in millimetres it warns not."""
+    _, db, camera, _, depth = caps
+    rows, cols = np.nonzero(depth)
+    z = depth[rows, cols] * camera["depth_scale"]
+    points = np.stack([(cols - camera["cx"]) * z / camera["fx"], (rows - camera["cy"]) * z / camera["fy"], z], axis=1)
+    detector = binpose.Detector(db, max_instances=1)
+    with pytest.warns(UserWarning, match="metres"):
+        assert len(detector.detect(points / 1000.0)) == 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert len(detector.detect(points)) == 1
 
 
 def test_guess_viewpoint_of_a_scan_in_a_world_frame(caps):
