@@ -30,8 +30,27 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
+/// A part this small (mm) is no bin-picking part: a model file spanning less is in metres.
+constexpr float kSmallestPart = 2.0f;
+
+/// The model file in millimetres. `units` "auto": millimetres, unless the file spans less than
+/// kSmallestPart, then metres, with a note.
+binpose::ModelFile readModelInUnits(const std::string& path, const std::string& units) {
+  if (units != "auto") return binpose::readModelOrBuiltin(path, binpose::unitScale(binpose::parseUnits(units)));
+  binpose::ModelFile file = binpose::readModelOrBuiltin(path, 1.0);
+  binpose::Vec3 lo, hi;
+  const binpose::Points& points = file.is_mesh ? file.mesh.vertices : file.cloud.points;
+  const float extent = binpose::bounds(points, lo, hi) ? (hi - lo).norm() : 0.0f;
+  if (extent > 0 && extent < kSmallestPart) {
+    fmt::print(stderr, "note: the model spans {:.3g} units, less than {} mm: reading it in metres (--units mm keeps millimetres)\n",
+               extent, kSmallestPart);
+    file = binpose::readModelOrBuiltin(path, binpose::unitScale(binpose::Units::Metres));
+  }
+  return file;
+}
+
 struct TrainOptions {
-  std::string model, out, units = "mm";
+  std::string model, out, units = "auto";
   int points = 4000;
   double rho_model = 0;
   std::optional<double> d_dist, d_angle_deg, overlap;
@@ -48,18 +67,19 @@ void addTrain(CLI::App& app, TrainOptions& o) {
   train->add_option("--d-dist", o.d_dist, "Distance step d_dist, mm (default: 1 mm x diameter/60 mm)");
   train->add_option("--d-angle", o.d_angle_deg, "Angle step d_angle, degrees (default 8)");
   train->add_option("--overlap", o.overlap, "Bin overlap p_d, fraction of a step in [0, 0.5) (default 0.15)");
-  train->add_option("--units", o.units, "Length unit of the model file: mm or m")->check(CLI::IsMember({"mm", "m"}))->capture_default_str();
+  train->add_option("--units", o.units, "Length unit of the model file: mm, m, or auto (mm, unless the file spans less than 2 mm: then m, with a note)")
+      ->check(CLI::IsMember({"auto", "mm", "m"}))
+      ->capture_default_str();
   train->add_option("--seed", o.seed, "Sampling seed")->capture_default_str();
 }
 
 int runTrain(const TrainOptions& o) {
   const auto t0 = Clock::now();
-  const double scale = binpose::unitScale(binpose::parseUnits(o.units));
   binpose::ModelParams params;
   params.num_points = o.points;
   params.rho_model = o.rho_model;
   params.seed = o.seed;
-  const binpose::ModelFile file = binpose::readModelOrBuiltin(o.model, scale);
+  const binpose::ModelFile file = readModelInUnits(o.model, o.units);
   const binpose::OrientedModel model =
       file.is_mesh ? binpose::prepareModel(file.mesh, params) : binpose::prepareModel(file.cloud, params);
   const double t_sample = secondsSince(t0);
@@ -91,7 +111,7 @@ int runTrain(const TrainOptions& o) {
 
 struct DetectOptions {
   std::string model, scene, intrinsics, image_id, out, preset = "default", params_file, render, export_ply;
-  std::string units = "auto", model_units = "mm";
+  std::string units = "auto", model_units = "auto";
   std::optional<int> max_instances, C_n, k_normals;
   std::optional<float> r, rho_sub, eta, e_gmax, sigma_dist, min_score;
   std::optional<bool> refine, verify, symmetry;
@@ -117,8 +137,9 @@ void addDetect(CLI::App& app, DetectOptions& o) {
   d->add_option("--units", o.units, "Length unit of the scene file: mm, m, or auto (mm, unless the scene spans less than half the model's diameter: then m, with a note)")
       ->check(CLI::IsMember({"auto", "mm", "m"}))
       ->capture_default_str();
-  d->add_option("--model-units", o.model_units, "Length unit of a model file trained on the fly")
-      ->check(CLI::IsMember({"mm", "m"}))->capture_default_str();
+  d->add_option("--model-units", o.model_units, "Length unit of a model file trained on the fly: mm, m, or auto (as train's --units)")
+      ->check(CLI::IsMember({"auto", "mm", "m"}))
+      ->capture_default_str();
   d->add_option("--model-points", o.model_points, "Model points when training on the fly")->capture_default_str();
   d->add_option("--r", o.r, "Sampling radius r, mm (default 25 mm x diameter/60 mm)");
   d->add_option("--rho-sub", o.rho_sub, "Scene density after sub-sampling, points/mm^2 (default 0.06 x (60 mm/diameter)^2)");
@@ -180,7 +201,7 @@ binpose::ModelDatabase loadOrTrain(const DetectOptions& o) {
   if (binpose::ModelDatabase::isDatabaseFile(o.model)) return binpose::ModelDatabase::load(o.model);
   binpose::ModelParams mp;
   mp.num_points = o.model_points;
-  const binpose::ModelFile file = binpose::readModelOrBuiltin(o.model, binpose::unitScale(binpose::parseUnits(o.model_units)));
+  const binpose::ModelFile file = readModelInUnits(o.model, o.model_units);
   const binpose::OrientedModel model = file.is_mesh ? binpose::prepareModel(file.mesh, mp) : binpose::prepareModel(file.cloud, mp);
   return binpose::ModelDatabase::build(model, binpose::defaultQuantization(model.diameter));
 }
@@ -220,7 +241,7 @@ void warnAboutUnits(const binpose::PointCloud& scan, float diameter) {
     fmt::print(stderr, "warning: the scene spans {:.3g} mm but the model is {:.3g} mm across: is the scene in metres? (use --units m)\n",
                extent, diameter);
   else if (extent > 1000.0f * diameter)
-    fmt::print(stderr, "warning: the scene spans {:.3g} mm, over 1000 times the model's {:.3g} mm: is the model in metres? (use --model-units m)\n",
+    fmt::print(stderr, "warning: the scene spans {:.3g} mm, over 1000 times the model's {:.3g} mm: is the model in metres? (--units m when training it, --model-units m when detect trains it)\n",
                extent, diameter);
 }
 

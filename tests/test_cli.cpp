@@ -57,6 +57,22 @@ TEST(TrainCli, MetresAndParameters) {
   EXPECT_GT(loaded.model().diameter, 100.0f);  // a carton of about 0.2 m, now in mm
 }
 
+// PCL's milk carton view is in metres (about 0.2 across): by default (--units auto) no part is
+// under 2 mm across, so it is read in metres, with a note, as with --units m; --units mm keeps it
+// 0.2 mm across.
+TEST(TrainCli, ModelInMetresIsReadInMetresUnlessMillimetresAreGiven) {
+  REQUIRE_DATA("pcl_milk/milk.pcd");
+  const std::string by_auto = test::tempPath("milk_auto.bpdb"), by_m = test::tempPath("milk_m.bpdb"), by_mm = test::tempPath("milk_mm.bpdb");
+  const std::string model = dataPath("pcl_milk/milk.pcd");
+  const CliRun run = runCli(fmt::format("train --model {} --out {} --points 500", model, by_auto));
+  ASSERT_EQ(run.code, 0) << run.out;
+  EXPECT_NE(run.err.find("reading it in metres"), std::string::npos) << run.err;
+  ASSERT_EQ(runCli(fmt::format("train --model {} --out {} --points 500 --units m", model, by_m)).code, 0);
+  ASSERT_EQ(runCli(fmt::format("train --model {} --out {} --points 500 --units mm", model, by_mm)).code, 0);
+  EXPECT_FLOAT_EQ(ModelDatabase::load(by_auto).model().diameter, ModelDatabase::load(by_m).model().diameter);
+  EXPECT_LT(ModelDatabase::load(by_mm).model().diameter, 1.0f);
+}
+
 TEST(TrainCli, BadInputExitsTwoWithOneLine) {
   const std::string junk = test::tempPath("junk.ply");
   test::writeAll(junk, "ply\nformat ascii 1.0\nelement vertex 100\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n");
