@@ -38,9 +38,7 @@ constexpr float kSmallestPart = 2.0f;
 binpose::ModelFile readModelInUnits(const std::string& path, const std::string& units) {
   if (units != "auto") return binpose::readModelOrBuiltin(path, binpose::unitScale(binpose::parseUnits(units)));
   binpose::ModelFile file = binpose::readModelOrBuiltin(path, 1.0);
-  binpose::Vec3 lo, hi;
-  const binpose::Points& points = file.is_mesh ? file.mesh.vertices : file.cloud.points;
-  const float extent = binpose::bounds(points, lo, hi) ? (hi - lo).norm() : 0.0f;
+  const float extent = binpose::boundsDiagonal(file.is_mesh ? file.mesh.vertices : file.cloud.points);
   if (extent > 0 && extent < kSmallestPart) {
     fmt::print(stderr, "note: the model spans {:.3g} units, less than {} mm: reading it in metres (--units mm keeps millimetres)\n",
                extent, kSmallestPart);
@@ -206,15 +204,6 @@ binpose::ModelDatabase loadOrTrain(const DetectOptions& o) {
   return binpose::ModelDatabase::build(model, binpose::defaultQuantization(model.diameter));
 }
 
-/// A scene spanning less than this share of the model's diameter cannot hold the part.
-constexpr float kLeastSceneShare = 0.5f;
-
-/// The diagonal of the scan's bounding box, in its units (0 when it has no finite point).
-float extentOf(const binpose::PointCloud& scan) {
-  binpose::Vec3 lo, hi;
-  return binpose::bounds(scan.points, lo, hi) ? (hi - lo).norm() : 0.0f;
-}
-
 /// The scene, in millimetres. With --units auto a scene file (not a depth image, whose scale the
 /// camera file gives) that spans less than half the model's diameter cannot hold the part: it is
 /// one in metres, as many sensors' software writes, and is read again so, with a note.
@@ -225,8 +214,8 @@ binpose::PointCloud loadScene(const DetectOptions& o, float diameter) {
   }
   if (o.units != "auto") return binpose::readCloud(o.scene, binpose::unitScale(binpose::parseUnits(o.units)));
   binpose::PointCloud scan = binpose::readCloud(o.scene, 1.0);
-  const float extent = extentOf(scan);
-  if (extent > 0 && extent < kLeastSceneShare * diameter) {
+  const float extent = binpose::boundsDiagonal(scan.points);
+  if (extent > 0 && extent < binpose::kLeastScanShareOfPart * diameter) {
     fmt::print(stderr, "note: the scene spans {:.3g} units, less than half the model's {:.3g} mm: reading it in metres (--units mm keeps millimetres)\n",
                extent, diameter);
     scan = binpose::readCloud(o.scene, binpose::unitScale(binpose::Units::Metres));
@@ -235,9 +224,9 @@ binpose::PointCloud loadScene(const DetectOptions& o, float diameter) {
 }
 
 void warnAboutUnits(const binpose::PointCloud& scan, float diameter) {
-  const float extent = extentOf(scan);
+  const float extent = binpose::boundsDiagonal(scan.points);
   if (extent <= 0) return;
-  if (extent < kLeastSceneShare * diameter)
+  if (extent < binpose::kLeastScanShareOfPart * diameter)
     fmt::print(stderr, "warning: the scene spans {:.3g} mm but the model is {:.3g} mm across: is the scene in metres? (use --units m)\n",
                extent, diameter);
   else if (extent > 1000.0f * diameter)

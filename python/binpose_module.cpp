@@ -197,10 +197,8 @@ class PyDetector {
   /// Points spanning less than half the model's diameter cannot hold the part: most likely
   /// metres (binpose works in millimetres), as many sensors' software gives them.
   void warnIfMetres(const PointCloud& scan) const {
-    Vec3 lo, hi;
-    if (!bounds(scan.points, lo, hi)) return;
-    const float extent = (hi - lo).norm(), diameter = db_->model().diameter;
-    if (extent <= 0 || extent >= 0.5f * diameter) return;
+    const float extent = boundsDiagonal(scan.points), diameter = db_->model().diameter;
+    if (extent <= 0 || extent >= kLeastScanShareOfPart * diameter) return;
     const std::string text =
         fmt::format("the points span {:.3g} but the model is {:.3g} mm across: are they in metres? (binpose works in millimetres)", extent, diameter);
     if (PyErr_WarnEx(PyExc_UserWarning, text.c_str(), 1) < 0) throw py::error_already_set();  // warnings set to errors

@@ -37,6 +37,11 @@ bool bounds(const Points& points, Vec3& lo, Vec3& hi) {
   return true;
 }
 
+float boundsDiagonal(const Points& points) {
+  Vec3 lo, hi;
+  return bounds(points, lo, hi) ? (hi - lo).norm() : 0.0f;
+}
+
 float medianOf(std::vector<float>& values) {
   const auto middle = values.begin() + static_cast<long>(values.size() / 2);
   std::nth_element(values.begin(), middle, values.end());

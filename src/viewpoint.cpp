@@ -43,11 +43,9 @@ Sample sampleOf(const Points& points) {
   for (std::size_t i = 0; i < points.size(); i += step)
     if (points[i].allFinite()) s.points.push_back(points[i]);
   if (s.points.size() < 3) return s;
-  Vec3 lo, hi;
-  bounds(s.points, lo, hi);
   for (const Vec3& p : s.points) s.centre += p;
   s.centre /= static_cast<float>(s.points.size());
-  s.extent = (hi - lo).norm();
+  s.extent = boundsDiagonal(s.points);
   if (!std::isfinite(s.extent)) return s;  // no spacing: nothing is guessed
   const PointGrid grid(s.points);
   std::vector<float> nearest;

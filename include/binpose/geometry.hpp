@@ -70,6 +70,8 @@ float diameter(const Points& points);
 
 /// Axis-aligned bounds; false when `points` is empty.
 bool bounds(const Points& points, Vec3& lo, Vec3& hi);
+/// The diagonal of the axis-aligned bounds (0 when `points` is empty).
+float boundsDiagonal(const Points& points);
 
 /// The median of `values` (the upper one of an even count), which it partly reorders; not empty.
 float medianOf(std::vector<float>& values);

@@ -14,6 +14,9 @@ enum class Units { Millimetres, Metres };
 double unitScale(Units units);
 /// Parses "mm" or "m" (throws on anything else).
 Units parseUnits(const std::string& text);
+/// A scan spanning less than this share of a part's diameter cannot hold it: read in millimetres,
+/// it is one in metres.
+inline constexpr float kLeastScanShareOfPart = 0.5f;
 
 /// PLY (ascii, binary_little_endian, binary_big_endian). Vertices x,y,z (float or double),
 /// optional nx,ny,nz (normalised; a zero normal marks the file's normals as unusable), optional
