@@ -209,22 +209,81 @@ Plane refitted(const Points& points, std::span<const std::uint32_t> inliers, con
   return {n, n.dot(mean.cast<float>())};
 }
 
-/// The points farther than 3 tolerances behind `plane` (on the side away from the sensor) whose
-/// foot on the plane lies within its inliers' extent (their bounding rectangle on it): what the
-/// plane hides. A table's far edge has the room's wall behind it, beyond the table; the tops of a
-/// layer of parts have the floor behind them, under the layer.
-std::size_t pointsBehind(const Points& points, std::span<const std::uint32_t> inliers, const Plane& plane, float tolerance) {
-  const Vec3 u = plane.normal.unitOrthogonal(), v = plane.normal.cross(u);
-  float u0 = INFINITY, u1 = -INFINITY, v0 = INFINITY, v1 = -INFINITY;
-  for (const auto i : inliers) {
-    const float a = u.dot(points[i]), b = v.dot(points[i]);
-    u0 = std::min(u0, a), u1 = std::max(u1, a), v0 = std::min(v0, b), v1 = std::max(v1, b);
+/// Cells of the inliers' footprint: at most about this many (a wide plane gets larger cells).
+constexpr double kMaxFootprintCells = 1 << 22;
+
+/// A plane's inliers' footprint on it: cells of side `link` or more (u, v along the plane), set
+/// where an inlier lies or in a gap of up to two cells between such cells.
+struct Footprint {
+  Vec3 u, v;
+  float side = 0, u0 = INFINITY, v0 = INFINITY, u1 = -INFINITY, v1 = -INFINITY;
+  long cols = 0, rows = 0;
+  std::vector<char> on;
+
+  Footprint(const Points& points, std::span<const std::uint32_t> inliers, const Plane& plane, float link)
+      : u(plane.normal.unitOrthogonal()), v(plane.normal.cross(u)) {
+    for (const auto i : inliers) {
+      const float a = u.dot(points[i]), b = v.dot(points[i]);
+      u0 = std::min(u0, a), u1 = std::max(u1, a), v0 = std::min(v0, b), v1 = std::max(v1, b);
+    }
+    if (!(u1 >= u0 && v1 >= v0)) return;
+    side = std::max(link, static_cast<float>(std::sqrt(double(u1 - u0) * double(v1 - v0) / kMaxFootprintCells)));
+    cols = static_cast<long>((u1 - u0) / side) + 1, rows = static_cast<long>((v1 - v0) / side) + 1;
+    on.assign(static_cast<std::size_t>(cols * rows), 0);
+    for (const auto i : inliers) on[cell(points[i])] = 1;
+    on = grown(grown(on, 1), 0);  // closed: gaps of up to two cells between inliers filled, the edge kept
   }
-  std::size_t behind = 0;
-  for (const Vec3& p : points) {
-    if (!(plane.normal.dot(p) - plane.d < -3.0f * tolerance)) continue;
+  /// `from` with every cell next to one of `value` (8-connected, within the grid) set to it.
+  [[nodiscard]] std::vector<char> grown(const std::vector<char>& from, char value) const {
+    std::vector<char> out = from;
+    for (long y = 0; y < rows; ++y)
+      for (long x = 0; x < cols; ++x)
+        for (long dy = -1; dy <= 1; ++dy)
+          for (long dx = -1; dx <= 1; ++dx) {
+            const long a = x + dx, b = y + dy;
+            if (a >= 0 && b >= 0 && a < cols && b < rows && from[static_cast<std::size_t>(b * cols + a)] == value)
+              out[static_cast<std::size_t>(y * cols + x)] = value;
+          }
+    return out;
+  }
+  [[nodiscard]] bool within(const Vec3& p) const {
     const float a = u.dot(p), b = v.dot(p);
-    behind += a >= u0 && a <= u1 && b >= v0 && b <= v1;
+    return a >= u0 && a <= u1 && b >= v0 && b <= v1;
+  }
+  [[nodiscard]] std::size_t cell(const Vec3& p) const {
+    const auto x = std::clamp(static_cast<long>((u.dot(p) - u0) / side), 0L, cols - 1);
+    const auto y = std::clamp(static_cast<long>((v.dot(p) - v0) / side), 0L, rows - 1);
+    return static_cast<std::size_t>(y * cols + x);
+  }
+};
+
+/// The points farther than 3 tolerances behind a plane, on the side away from the sensor.
+struct Behind {
+  /// ... whose foot on the plane lies within its inliers' extent (their bounding rectangle on
+  /// it): what a wall hides. The far walls' inner faces have nothing behind them; the near wall
+  /// seen from outside has the bin's contents behind it.
+  std::size_t below = 0;
+  /// ... whose line of sight crosses the plane on its inliers' footprint: what a floor hides,
+  /// seen through it. The tops of a layer of parts lying flat, touching, have the floor behind
+  /// them, seen through the gaps between them; a table has the room's floor and a lower desk
+  /// behind it, but seen past its edge, off it.
+  std::size_t seen_through = 0;
+};
+
+/// What `plane` hides from the sensor at `viewpoint` (Behind).
+Behind pointsBehind(const Points& points, std::span<const std::uint32_t> inliers, const Plane& plane, float tolerance,
+                    float link, const Vec3& viewpoint) {
+  const Footprint footprint(points, inliers, plane, link);
+  Behind behind;
+  if (footprint.on.empty()) return behind;
+  const float sensor_side = plane.normal.dot(viewpoint) - plane.d;
+  for (const Vec3& p : points) {
+    const float point_side = plane.normal.dot(p) - plane.d;
+    if (!(point_side < -3.0f * tolerance)) continue;
+    behind.below += footprint.within(p);
+    if (!(sensor_side > 0)) continue;
+    const Vec3 crossing = viewpoint + (sensor_side / (sensor_side - point_side)) * (p - viewpoint);
+    behind.seen_through += footprint.within(crossing) && footprint.on[footprint.cell(crossing)];
   }
   return behind;
 }
@@ -232,15 +291,31 @@ std::size_t pointsBehind(const Points& points, std::span<const std::uint32_t> in
 /// Floor and walls meet at right angles; drafted walls and a tilted scan within this.
 constexpr float kSquareDegrees = 15.0f;
 
-/// Whether a background plane can be a surface of the bin or the table, given the first one
-/// kept (the largest): parallel, opposite or at right angles to it. A tilted plane that passes
-/// the points-behind test is a face of a part, or the faces of several lying side by side,
-/// that happen to hide little: as background it would hide that part from the votes and take
-/// its support away in verification.
-bool squareToFirst(const Plane& plane, const std::vector<Plane>& kept) {
-  if (kept.empty()) return true;
-  const float c = std::abs(plane.normal.dot(kept.front().normal)), off = kSquareDegrees * float(M_PI) / 180.0f;
-  return c <= std::sin(off) || c >= std::cos(off);
+/// A plane the search found that hides (almost) nothing by one test or the other (Behind), and
+/// its connected patches of min_count points or more.
+struct Background {
+  Plane plane;
+  std::vector<std::uint32_t> inliers;
+  bool hides_nothing_below = false;    ///< Behind::below at most max_behind of the points
+  bool hides_nothing_through = false;  ///< Behind::seen_through at most max_behind of its inliers
+  bool largest = false;                ///< the plane of the most inliers the search found
+  std::vector<std::vector<std::uint32_t>> patches;
+};
+
+/// Whether a background plane is a surface of the bin or the table, given the planes kept
+/// before it. The first one kept has nothing behind it within its extent, or is the largest
+/// plane and hides nothing seen through it (a table with the room's floor seen past its edges).
+/// The others are parallel to the first (another floor, a table, a step, the bin's rim) and hide
+/// nothing by either test, or at right angles to it (a wall) with nothing behind it within its
+/// extent: not the near wall seen from outside, with the bin's contents behind it. A tilted plane
+/// is a face of a part, or the faces of several lying side by side, that happen to hide little:
+/// as background it would hide that part from the votes and take its support away in
+/// verification.
+bool ofTheBin(const Background& b, const std::vector<Plane>& kept) {
+  if (kept.empty()) return b.hides_nothing_below || (b.largest && b.hides_nothing_through);
+  const float c = std::abs(b.plane.normal.dot(kept.front().normal)), off = kSquareDegrees * float(M_PI) / 180.0f;
+  if (c >= std::cos(off)) return b.hides_nothing_below || b.hides_nothing_through;
+  return c <= std::sin(off) && b.hides_nothing_below;
 }
 
 }  // namespace
@@ -272,14 +347,10 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
   // A background plane's inliers split into patches (a flood fill, a third of the search's
   // time) while the next rounds look for planes: the next round's points do not depend on it
   // (every inlier is tried, whatever patch it falls in), and rounds' inliers are disjoint.
-  struct Background {
-    Plane plane;
-    std::vector<std::uint32_t> inliers;
-    std::vector<std::vector<std::uint32_t>> patches;  ///< its connected patches of min_count points or more
-  };
   std::vector<Background> background;
   background.reserve(static_cast<std::size_t>(std::max(0, params.max_planes)));  // no move under a running task
   tbb::task_group flood;
+  std::size_t most_inliers = 0;  // of every plane found, background or not
   for (int round = 0; round < params.max_planes; ++round) {
     left.clear();
     for (std::uint32_t i = 0; i < points.size(); ++i)
@@ -306,20 +377,28 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
     }
     if (inliers.size() < min_count) break;  // the largest plane left is too small: done
     for (const auto i : inliers) tried[i] = 1;  // small patches of it stay in the scene, and are not tried again
-    if (static_cast<float>(pointsBehind(points, inliers, best, params.tolerance)) > params.max_behind * static_cast<float>(points.size()))
-      continue;  // not background
+    most_inliers = std::max(most_inliers, inliers.size());
+    const Behind behind = pointsBehind(points, inliers, best, params.tolerance, params.link, params.viewpoint);
+    const float most = params.max_behind * static_cast<float>(points.size());
+    const bool below = static_cast<float>(behind.below) <= most;
+    const bool through = static_cast<float>(behind.seen_through) <= params.max_behind * static_cast<float>(inliers.size());
+    if (!below && !through) continue;  // not background: a layer of parts
     // The farthest surface, the bin's floor or a table: background for verification even where
     // what the parts leave of it is in pieces each smaller than min_count (those stay in the votes).
-    Background* b = &background.emplace_back(Background{best, inliers, {}});
+    Background* b = &background.emplace_back(Background{best, inliers, below, through, false, {}});
     flood.run([&, b] {
       for (auto& patch : detail::linkedPatches(points, b->inliers, params.link, b->plane.normal))
         if (patch.size() >= min_count) b->patches.push_back(std::move(patch));
     });
   }
   flood.wait();
+  // The largest plane first: a table that hides nothing seen through it, the room's floor seen
+  // past its edge, is the first one kept, and what is parallel to it may be seen through it too.
+  for (Background& b : background) b.largest = b.inliers.size() == most_inliers;
+  std::stable_partition(background.begin(), background.end(), [](const Background& b) { return b.largest; });
   std::vector<Plane> kept;
   for (const Background& b : background) {
-    if (!squareToFirst(b.plane, kept)) continue;  // its points stay in the votes
+    if (!ofTheBin(b, kept)) continue;  // its points stay in the votes
     kept.push_back(b.plane);
     for (const auto& patch : b.patches)
       for (const auto i : patch) plane[i] = 1;

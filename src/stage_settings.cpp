@@ -75,6 +75,7 @@ PlaneParams planeParams(const StageSettings& s) {
   planes.tolerance = s.plane_tolerance;
   planes.link = kPlaneLinkSpacings / std::sqrt(s.rho_sub);
   planes.seed = s.seed;
+  planes.viewpoint = s.viewpoint;
   return planes;
 }
 
@@ -95,6 +96,7 @@ void validateStages(const StageSettings& s) {
   share(s.retry_min_score, "retry_min_score");
   share(s.min_visible_support, "min_visible_support");
   share(s.max_outline_share, "max_outline_share");
+  share(s.min_outline_drop, "min_outline_drop");
   range(s.retry_min_clique, 0, 1 << 20, "retry_min_clique");
   if (!(s.grazing_angle > 0 && s.grazing_angle <= 90))
     throw Error(fmt::format("grazing_angle must lie in (0, 90] degrees, got {}", s.grazing_angle));

@@ -110,6 +110,40 @@ TEST(Planes, ATiltedFaceThatHidesNothingStays) {
   EXPECT_GT(std::abs(background[0].normal.z()), 0.999f);
 }
 
+// A table seen from in front of it, the sensor not above it: past its near edge the sensor sees
+// the floor 700 mm below, under the table. Those floor points lie behind the table within its
+// extent, as the floor under a layer of parts does, but their line of sight crosses the table's
+// plane off the table: it hides nothing seen through it, and it is the largest plane. Both the
+// table and the floor go.
+TEST(Planes, ATableWithTheFloorSeenUnderItsNearEdgeGoes) {
+  const Vec3 sensor(-300, 0, 0), up(0, 0, -1);
+  Bin scene;
+  Rng rng(11);
+  for (float x = 0; x <= 200; x += kSpacing)  // the table, z = 500: 200 x 200 mm
+    for (float y = -100; y <= 100; y += kSpacing) scene.add(Vec3(x, y, 500), up, 0, rng);
+  const auto hidden = [&](const Vec3& p) {  // behind the table, as the sensor sees it
+    const Vec3 c = sensor + (500.0f / p.z()) * (p - sensor);
+    return c.x() >= 0 && c.x() <= 200 && std::abs(c.y()) <= 100;
+  };
+  for (float x = -100; x <= 300; x += 8.0f)  // the floor, z = 1200, sparser (farther)
+    for (float y = -150; y <= 150; y += 8.0f)
+      if (!hidden(Vec3(x, y, 1200))) scene.add(Vec3(x, y, 1200), up, 1, rng);
+  PlaneParams params;
+  params.viewpoint = sensor;
+  std::vector<Plane> background;
+  const std::vector<char> flat = largePlanes(scene.points, scene.normals, 1.0f / (kSpacing * kSpacing), params, &background);
+  int count[2] = {0, 0}, removed[2] = {0, 0}, under = 0;
+  for (std::size_t i = 0; i < flat.size(); ++i) {
+    ++count[scene.kind[i]];
+    removed[scene.kind[i]] += flat[i];
+    under += scene.kind[i] == 1 && scene.points[i].x() >= 0 && scene.points[i].x() <= 200 && std::abs(scene.points[i].y()) <= 100;
+  }
+  EXPECT_GT(under, static_cast<int>(0.02 * double(flat.size()))) << "enough floor under the table to fail the extent test";
+  EXPECT_GE(removed[0], 0.99 * count[0]) << "table";
+  EXPECT_GE(removed[1], 0.99 * count[1]) << "floor";
+  EXPECT_EQ(background.size(), 2u);
+}
+
 TEST(Planes, SameResultForTheSameSeed) {
   const Bin bin = makeBin();
   const float density = 1.0f / (kSpacing * kSpacing);

@@ -17,9 +17,13 @@ struct PlaneParams {
   float tolerance = 1.5f;     ///< largest distance of a point from the plane, mm
   float max_angle = 0.35f;    ///< largest angle of a point's normal from the plane's normal, radians (20 degrees)
   float link = 10.0f;         ///< points closer than this are connected within one patch, mm
-  /// Background only: a plane with more than this share of the points behind it (seen through it,
-  /// farther than 3 tolerances on the side away from the sensor) is a layer of parts, not the bin.
+  /// Background only: a plane that hides more than this share of the points behind its extent
+  /// (farther than 3 tolerances on the side away from the sensor, their foot on the plane within
+  /// its inliers' bounding rectangle), and more than this share of its inliers' count seen
+  /// through it (their line of sight crossing it where its inliers lie), is a layer of parts,
+  /// not the bin.
   float max_behind = 0.02f;
+  Vec3 viewpoint = Vec3::Zero();  ///< the sensor's position, mm (normals face it)
   int max_planes = 8;         ///< planes looked for, largest first
   int trials = 300;           ///< RANSAC hypotheses per plane (one oriented point each)
   std::uint64_t seed = 1;
@@ -47,11 +51,12 @@ struct LateNormals {
 /// one point and its normal, refitted to its inliers by least squares), then the inliers split
 /// into connected patches, and every patch of
 /// at least `min_area` (at the points' density `density`, points/mm^2) removed. Only background
-/// planes go, with (almost) nothing behind them: the floor, the walls, a table; the tops of a
-/// layer of parts lying flat, touching one another, have the floor behind them and stay, and
-/// coplanar faces of parts that do not touch stay. So does a plane tilted (by more than 15
-/// degrees) from square to the first background plane: a bin's floor and walls meet at right
-/// angles, and a tilted face that hides little is a part's. Normals face the sensor. Returns one
+/// planes go, with (almost) nothing behind them (max_behind): the floor, the walls, a table
+/// (the room's floor seen past its edge is not seen through it); the tops of a layer of parts
+/// lying flat, touching one another, have the floor behind them and stay, and coplanar faces of
+/// parts that do not touch stay. So does a plane tilted (by more than 15 degrees) from square to
+/// the first background plane: a bin's floor and walls meet at right angles, and a tilted face
+/// that hides little is a part's. Normals face the sensor at `viewpoint`. Returns one
 /// flag per point: 1 on a removed plane; `removed`, when given, receives every background plane found
 /// (with at least min_area of inliers in all, even where no one patch is that large).
 /// Deterministic for a given seed. With `late`, only the normals the search needs are computed

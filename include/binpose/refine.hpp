@@ -112,8 +112,15 @@ struct Evidence {
 struct OutlineEvidence {
   int judged = 0;     ///< outline steps with a visible part edge and a scan surface beyond it
   int continued = 0;  ///< ... where that surface lies on the part's tangent plane, continued
+  /// ... where it lies clearly behind that plane (farther than the tolerance): the part stands
+  /// out of what lies behind it there.
+  int dropped = 0;
   /// continued / judged (0 when none is judged).
   [[nodiscard]] float share() const { return judged == 0 ? 0.0f : static_cast<float>(continued) / static_cast<float>(judged); }
+  /// dropped / judged (0 when none is judged).
+  [[nodiscard]] float droppedShare() const {
+    return judged == 0 ? 0.0f : static_cast<float>(dropped) / static_cast<float>(judged);
+  }
 };
 
 /// The scan as seen from its viewpoint: a grid for support, and a range image (nearest range
@@ -135,6 +142,8 @@ class SceneEvidence {
     background_ = std::move(background);
     background_tolerance_ = background_tolerance;
   }
+  /// The background planes set by setBackground.
+  [[nodiscard]] const std::vector<Plane>& background() const { return background_; }
   /// Model points whose normal makes more than `degrees` with the line of sight are counted
   /// apart as grazing (Evidence::grazing). 90, the default: none.
   void setGrazingAngle(float degrees) { cos_grazing_ = std::cos(degrees * float(M_PI) / 180.0f); }
