@@ -256,7 +256,7 @@ void addFaceDetections(const std::vector<ModelFace>& faces, const Matcher& m, co
     const Evidence e = m.scoredEvidence(*pose, h.support);
     h.detection.pose = *pose;
     h.detection.score = e.score();
-    if (!m.stands(*pose, h.detection.score, e)) continue;
+    if (!m.stands(*pose, h.detection.score, e, h.support)) continue;
     state.accept(std::move(h), p, shape, m.scene.points);
     if (state.enough) return;
   }

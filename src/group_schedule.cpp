@@ -218,7 +218,7 @@ void GroupSchedule::take(GroupOutcome& o) {
   }
   const Detection det = o.hypothesis.detection;
   if (p_.verify && o.all_voters && o.evidence.scoreWithoutGrazing() < p_.retry_min_score) return;  // see retry_min_score
-  if (p_.verify && !matcher_.stands(det.pose, det.score, o.evidence)) return;
+  if (p_.verify && !matcher_.stands(det.pose, det.score, o.evidence, o.hypothesis.support)) return;
   s.accept(std::move(o.hypothesis), p_, shape_, matcher_.scene.points);
 }
 

@@ -6,7 +6,8 @@
 // behind that face. What gives it away is the outline: at a right pose's visible edge the scan
 // drops to what lies behind the part or meets what lies in front of it; at such a wrong pose the
 // scan goes on along the part's own surface. The test extrapolates the part's tangent plane at
-// each outline cell two cells outwards and asks whether the scan lies on it there.
+// each outline cell two cells outwards and asks whether the scan lies on it there, or clearly
+// behind it (the part stands out of what lies behind it).
 #include <binpose/refine.hpp>
 
 #include <algorithm>
@@ -121,7 +122,9 @@ OutlineEvidence SceneEvidence::outline(const Pose& pose, const PreparedModel& mo
         if (!(-cosine >= kMinCosine)) continue;
         const float range = f.n.dot(f.p - viewpoint_) / cosine;
         ++out.judged;
-        out.continued += std::abs(nearest_[static_cast<std::size_t>(beyond)] - range) <= tolerance;
+        const float past = nearest_[static_cast<std::size_t>(beyond)] - range;  // > 0: the scan lies behind
+        out.continued += std::abs(past) <= tolerance;
+        out.dropped += past > tolerance;
       }
     }
   return out;

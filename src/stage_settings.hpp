@@ -68,6 +68,12 @@ struct StageSettings : DetectionParams {
   /// (SceneEvidence::outline: one face laid on a larger surface; 1: no test). Right poses reach
   /// 0.5 where a copy lies flush against another.
   float max_outline_share = 0.55f;
+  /// A detection whose support lies on one plane (the scan shows it by one flat face) must stand
+  /// out of what lies behind it: beyond at least this share of its judged outline steps the scan
+  /// lies clearly behind the part's tangent plane (OutlineEvidence::dropped; 0: no test). A pose
+  /// laid on a patch of a larger flat surface (a table, a box's side, a face of another part),
+  /// its body sunk into it, meets the scan on one plane, and nothing falls away around it.
+  float min_outline_drop = 0.15f;
   /// After the sub-groups, the scene's flat regions that no detection explains, each about as large
   /// as a flat face of the model, are tried as that face (face_hypotheses.hpp): a copy that shows
   /// one flat face only gives no clique.

@@ -4,6 +4,7 @@
 #include "stopwatch.hpp"
 
 #include <binpose/clique.hpp>
+#include <binpose/normals.hpp>
 #include <binpose/pose.hpp>
 
 #include <algorithm>
@@ -24,6 +25,19 @@ void reset(GroupOutcome& out, bool all_voters) {
   out.hypothesis = {};
   out.evidence = {};
   out.vote_ms = out.match_ms = out.refine_ms = 0;
+}
+
+/// The share of points[which] within `tolerance` of their least-squares plane (eq. 30-38, through
+/// their centroid); 0 for fewer than three or a degenerate fit.
+float shareOnOnePlane(const Points& points, std::span<const std::uint32_t> which, float tolerance) {
+  Vec3 n;
+  if (!fitPlaneNormal(points, which, n)) return 0.0f;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto i : which) mean += points[i].cast<double>();
+  const Vec3 centre = (mean / static_cast<double>(which.size())).cast<float>();
+  const auto on =
+      std::count_if(which.begin(), which.end(), [&](std::uint32_t i) { return std::abs(n.dot(points[i] - centre)) <= tolerance; });
+  return static_cast<float>(on) / static_cast<float>(which.size());
 }
 
 }  // namespace
@@ -148,17 +162,23 @@ Evidence Matcher::scoredEvidence(const Pose& pose, std::vector<std::uint32_t>& s
   return e;
 }
 
-bool Matcher::stands(const Pose& pose, float score, const Evidence& e) const {
+bool Matcher::stands(const Pose& pose, float score, const Evidence& e, std::span<const std::uint32_t> support) const {
   if (score < p.min_score) return false;
   if (e.visibleSupport() < p.min_visible_support) return false;  // met by the scan only in passing
-  return !outlineContinued(pose);                                 // a face laid on a larger surface
+  return outlineStandsOut(pose, support);
 }
 
-bool Matcher::outlineContinued(const Pose& pose) const {
-  constexpr int kMinJudged = 4;  // one or two coincidences do not decide
-  if (p.max_outline_share >= 1.0f) return false;
+bool Matcher::outlineStandsOut(const Pose& pose, std::span<const std::uint32_t> support) const {
+  constexpr int kMinJudged = 4;         // one or two coincidences do not decide
+  constexpr int kMinDropJudged = 8;     // a drop is missing by chance on a short outline
+  constexpr float kOnePlaneShare = 0.8f;  // of the support within kOnePlaneTolerances of one plane
+  constexpr float kOnePlaneTolerances = 2.0f;
+  if (p.max_outline_share >= 1.0f && p.min_outline_drop <= 0.0f) return true;
   const OutlineEvidence o = evidence.outline(pose, scored_model, p.verify_tolerance, db.model().sample_radius);
-  return o.judged >= kMinJudged && o.share() > p.max_outline_share;
+  if (o.judged >= kMinJudged && o.share() > p.max_outline_share) return false;  // a face laid on a larger surface
+  if (o.judged < kMinDropJudged || o.droppedShare() >= p.min_outline_drop) return true;
+  // Nothing falls away around it: it stands only where the scan shows more of it than one plane.
+  return shareOnOnePlane(scan.points, support, kOnePlaneTolerances * p.verify_tolerance) < kOnePlaneShare;
 }
 
 float Matcher::prescore(const Pose& pose, bool second_pass) const {

@@ -103,13 +103,14 @@ struct Matcher {
   /// The final score's evidence for a pose on all model points, the supporting scan points added
   /// to `support` (sorted, distinct).
   Evidence scoredEvidence(const Pose& pose, std::vector<std::uint32_t>& support) const;
-  /// Whether a verified pose scoring `score` with evidence `e` stands as a detection: at least
-  /// min_score, supported on min_visible_support of what the scan could show, and its outline
-  /// not continued by the scan (outlineContinued).
-  [[nodiscard]] bool stands(const Pose& pose, float score, const Evidence& e) const;
-  /// Whether the scan's surface goes on past the posed part's outline at more than
-  /// max_outline_share of it (SceneEvidence::outline).
-  [[nodiscard]] bool outlineContinued(const Pose& pose) const;
+  /// Whether a verified pose scoring `score` with evidence `e` and the supporting scan points
+  /// `support` stands as a detection: at least min_score, supported on min_visible_support of
+  /// what the scan could show, and standing out of the scan at its outline (outlineStandsOut).
+  [[nodiscard]] bool stands(const Pose& pose, float score, const Evidence& e, std::span<const std::uint32_t> support) const;
+  /// Whether the posed part's outline tells it from the scan around it (SceneEvidence::outline):
+  /// the scan's surface does not go on past it at more than max_outline_share of it, and where
+  /// the support lies on one plane, the scan falls away behind at least min_outline_drop of it.
+  [[nodiscard]] bool outlineStandsOut(const Pose& pose, std::span<const std::uint32_t> support) const;
 
  private:
   /// The candidate correspondences of the outcome's members; false when a second pass has nothing new.

@@ -527,7 +527,7 @@ TEST(RealScans, MilkCartonInPclScene) {
 // absurd value set inside the project is caught before detection.
 TEST(Params, InternalValuesAreNotReadAndAbsurdOnesAreRejected) {
   DetectionParams user = defaultPreset();
-  for (const char* key : {"mirror_retries", "alternative_cliques", "max_outline_share", "prescreen_retry_steps", "retry_all_voters", "grazing_angle", "local_votes"})
+  for (const char* key : {"mirror_retries", "alternative_cliques", "max_outline_share", "min_outline_drop", "prescreen_retry_steps", "retry_all_voters", "grazing_angle", "local_votes"})
     EXPECT_THROW(applyJson(user, fmt::format(R"({{"{}": 1}})", key), "test"), Error) << key;
   const StageSettings good = stagesFor(defaultPreset(), 60.0f);
   EXPECT_NO_THROW(validateStages(good));
@@ -539,6 +539,8 @@ TEST(Params, InternalValuesAreNotReadAndAbsurdOnesAreRejected) {
       {"alternative_min_score 1.5", [](StageSettings& s) { s.alternative_min_score = 1.5f; }},
       {"max_outline_share -0.1", [](StageSettings& s) { s.max_outline_share = -0.1f; }},
       {"max_outline_share NaN", [](StageSettings& s) { s.max_outline_share = NAN; }},
+      {"min_outline_drop 1.5", [](StageSettings& s) { s.min_outline_drop = 1.5f; }},
+      {"min_outline_drop NaN", [](StageSettings& s) { s.min_outline_drop = NAN; }},
       {"prescreen_retry_steps -1", [](StageSettings& s) { s.prescreen_retry_steps = -1; }},
       {"prescreen_retry_share 1.5", [](StageSettings& s) { s.prescreen_retry_share = 1.5f; }},
       {"prescreen_retry_share NaN", [](StageSettings& s) { s.prescreen_retry_share = NAN; }},

@@ -82,6 +82,23 @@ TEST(RealSensors, PclMilkCartonFirstAndNothingElse) {
   EXPECT_LT(test::deg(Eigen::AngleAxisf(pose.linear()).angle()), 2.0);
 }
 
+// A real Kinect-class frame (IC-BIN: cups and juice cartons in a box on a table) searched for a
+// part it does not hold, IPD obj 8: every detection is wrong. Faces of the part laid on the
+// table, the box and the cartons, sunk into them, met the scan on one plane with nothing falling
+// away around them (34 detections, best score 0.40, before the table counted as background
+// and such a pose had to stand out at its outline); 4 today.
+TEST(RealSensors, AFrameWithoutThePartGivesFewDetections) {
+  REQUIRE_DATA("ipd_parts/models/obj_000008.ply");
+  REQUIRE_DATA("icbin_mixed/depth/0002.png");
+  const OrientedModel model = prepareModel(readMesh(test::dataPath("ipd_parts/models/obj_000008.ply")), ModelParams{});
+  const ModelDatabase db = databaseOf(model);
+  const Intrinsics camera = readIntrinsics(test::dataPath("icbin_mixed/camera.json"), "");
+  const PointCloud scan = readDepthPng(test::dataPath("icbin_mixed/depth/0002.png"), camera);
+  const DetectionResult result = Detector(db, scaledToModel(defaultPreset(), model.diameter)).detect(scan);
+  EXPECT_LE(result.detections.size(), 10u);
+  for (const Detection& d : result.detections) EXPECT_LT(d.score, 0.5f);
+}
+
 namespace {
 
 /// Right (matched one to one by the benchmark's rule, ADD-S under 0.1 diameter) and wrong detections.

@@ -152,12 +152,19 @@ TEST(Evidence, OutlineTellsAFaceLaidOnALargerSurface) {
   EXPECT_GT(laid.score(), 0.9f);
   EXPECT_GT(laid_outline.judged, 50);
   EXPECT_GT(laid_outline.share(), 0.9f);
+  EXPECT_EQ(laid_outline.dropped, 0);  // nothing falls away around it
   for (const PointCloud* scan : {&on_floor, &beside_plate}) {
     const auto [right, right_outline] = judge(*scan);
     EXPECT_GT(right.score(), 0.9f);
     EXPECT_GT(right_outline.judged, 30);
     EXPECT_EQ(right_outline.continued, 0);
   }
+  // Off the floor, the scan falls away behind the whole outline; beside the plate (in front,
+  // past the edge x = 30), behind the rest of it.
+  const OutlineEvidence floor_outline = judge(on_floor).second, plate_outline = judge(beside_plate).second;
+  EXPECT_EQ(floor_outline.dropped, floor_outline.judged);
+  EXPECT_GT(plate_outline.droppedShare(), 0.5f);
+  EXPECT_LT(plate_outline.droppedShare(), 0.9f);
 }
 
 // A box standing beside the line of sight, as a sensor sees it: its near face only, and the
