@@ -318,6 +318,22 @@ bool ofTheBin(const Background& b, const std::vector<Plane>& kept) {
   return c <= std::sin(off) && b.hides_nothing_below;
 }
 
+/// The background planes of the bin (ofTheBin), their patches flagged in `plane`. The largest
+/// plane (of `most_inliers`) first: a table that hides nothing seen through it, the room's floor
+/// seen past its edge, is the first one kept, and what is parallel to it may be seen through it too.
+std::vector<Plane> keptOfTheBin(std::vector<Background>& background, std::size_t most_inliers, std::vector<char>& plane) {
+  for (Background& b : background) b.largest = b.inliers.size() == most_inliers;
+  std::stable_partition(background.begin(), background.end(), [](const Background& b) { return b.largest; });
+  std::vector<Plane> kept;
+  for (const Background& b : background) {
+    if (!ofTheBin(b, kept)) continue;  // its points stay in the votes
+    kept.push_back(b.plane);
+    for (const auto& patch : b.patches)
+      for (const auto i : patch) plane[i] = 1;
+  }
+  return kept;
+}
+
 }  // namespace
 
 std::vector<char> largePlanes(const Points& points, const Points& normals, float density, const PlaneParams& params,
@@ -392,17 +408,7 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
     });
   }
   flood.wait();
-  // The largest plane first: a table that hides nothing seen through it, the room's floor seen
-  // past its edge, is the first one kept, and what is parallel to it may be seen through it too.
-  for (Background& b : background) b.largest = b.inliers.size() == most_inliers;
-  std::stable_partition(background.begin(), background.end(), [](const Background& b) { return b.largest; });
-  std::vector<Plane> kept;
-  for (const Background& b : background) {
-    if (!ofTheBin(b, kept)) continue;  // its points stay in the votes
-    kept.push_back(b.plane);
-    for (const auto& patch : b.patches)
-      for (const auto i : patch) plane[i] = 1;
-  }
+  const std::vector<Plane> kept = keptOfTheBin(background, most_inliers, plane);
   if (removed) removed->insert(removed->end(), kept.begin(), kept.end());
   return plane;
 }
