@@ -200,13 +200,9 @@ Plane bestHypothesis(const detail::OrientedLanes& probe_points, const std::vecto
 /// normal on the side of `like`'s: a hypothesis takes one point's normal, as noisy as the sensor,
 /// and a plane tilted by it leaves the far side of a floor out of tolerance.
 Plane refitted(const Points& points, std::span<const std::uint32_t> inliers, const Plane& like) {
-  Vec3 n;
-  if (!fitPlaneNormal(points, inliers, n)) return like;
-  if (n.dot(like.normal) < 0) n = -n;
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  for (const auto i : inliers) mean += points[i].cast<double>();
-  mean /= static_cast<double>(inliers.size());
-  return {n, n.dot(mean.cast<float>())};
+  Plane fit;
+  if (!fitPlane(points, inliers, fit)) return like;
+  return fit.normal.dot(like.normal) < 0 ? Plane{-fit.normal, -fit.d} : fit;
 }
 
 /// Cells of the inliers' footprint: at most about this many (a wide plane gets larger cells).
@@ -298,7 +294,6 @@ struct Background {
   std::vector<std::uint32_t> inliers;
   bool hides_nothing_below = false;    ///< Behind::below at most max_behind of the points
   bool hides_nothing_through = false;  ///< Behind::seen_through at most max_behind of its inliers
-  bool largest = false;                ///< the plane of the most inliers the search found
   std::vector<std::vector<std::uint32_t>> patches;
 };
 
@@ -311,8 +306,8 @@ struct Background {
 /// is a face of a part, or the faces of several lying side by side, that happen to hide little:
 /// as background it would hide that part from the votes and take its support away in
 /// verification.
-bool ofTheBin(const Background& b, const std::vector<Plane>& kept) {
-  if (kept.empty()) return b.hides_nothing_below || (b.largest && b.hides_nothing_through);
+bool ofTheBin(const Background& b, bool largest, const std::vector<Plane>& kept) {
+  if (kept.empty()) return b.hides_nothing_below || (largest && b.hides_nothing_through);
   const float c = std::abs(b.plane.normal.dot(kept.front().normal)), off = kSquareDegrees * float(M_PI) / 180.0f;
   if (c >= std::cos(off)) return b.hides_nothing_below || b.hides_nothing_through;
   return c <= std::sin(off) && b.hides_nothing_below;
@@ -322,11 +317,11 @@ bool ofTheBin(const Background& b, const std::vector<Plane>& kept) {
 /// plane (of `most_inliers`) first: a table that hides nothing seen through it, the room's floor
 /// seen past its edge, is the first one kept, and what is parallel to it may be seen through it too.
 std::vector<Plane> keptOfTheBin(std::vector<Background>& background, std::size_t most_inliers, std::vector<char>& plane) {
-  for (Background& b : background) b.largest = b.inliers.size() == most_inliers;
-  std::stable_partition(background.begin(), background.end(), [](const Background& b) { return b.largest; });
+  const auto largest = [&](const Background& b) { return b.inliers.size() == most_inliers; };
+  std::stable_partition(background.begin(), background.end(), largest);
   std::vector<Plane> kept;
   for (const Background& b : background) {
-    if (!ofTheBin(b, kept)) continue;  // its points stay in the votes
+    if (!ofTheBin(b, largest(b), kept)) continue;  // its points stay in the votes
     kept.push_back(b.plane);
     for (const auto& patch : b.patches)
       for (const auto i : patch) plane[i] = 1;
@@ -335,6 +330,16 @@ std::vector<Plane> keptOfTheBin(std::vector<Background>& background, std::size_t
 }
 
 }  // namespace
+
+bool fitPlane(const Points& points, std::span<const std::uint32_t> which, Plane& plane) {
+  Vec3 n;
+  if (!fitPlaneNormal(points, which, n)) return false;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto i : which) mean += points[i].cast<double>();
+  mean /= static_cast<double>(which.size());
+  plane = {n, n.dot(mean.cast<float>())};
+  return true;
+}
 
 std::vector<char> largePlanes(const Points& points, const Points& normals, float density, const PlaneParams& params,
                               std::vector<Plane>* removed, const LateNormals* late) {
@@ -401,7 +406,7 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
     if (!below && !through) continue;  // not background: a layer of parts
     // The farthest surface, the bin's floor or a table: background for verification even where
     // what the parts leave of it is in pieces each smaller than min_count (those stay in the votes).
-    Background* b = &background.emplace_back(Background{best, inliers, below, through, false, {}});
+    Background* b = &background.emplace_back(Background{best, inliers, below, through, {}});
     flood.run([&, b] {
       for (auto& patch : detail::linkedPatches(points, b->inliers, params.link, b->plane.normal))
         if (patch.size() >= min_count) b->patches.push_back(std::move(patch));

@@ -4,7 +4,7 @@
 #include "stopwatch.hpp"
 
 #include <binpose/clique.hpp>
-#include <binpose/normals.hpp>
+#include <binpose/planes.hpp>
 #include <binpose/pose.hpp>
 
 #include <algorithm>
@@ -27,16 +27,13 @@ void reset(GroupOutcome& out, bool all_voters) {
   out.vote_ms = out.match_ms = out.refine_ms = 0;
 }
 
-/// The share of points[which] within `tolerance` of their least-squares plane (eq. 30-38, through
-/// their centroid); 0 for fewer than three or a degenerate fit.
+/// The share of points[which] within `tolerance` of their least-squares plane (fitPlane); 0 for
+/// fewer than three or a degenerate fit.
 float shareOnOnePlane(const Points& points, std::span<const std::uint32_t> which, float tolerance) {
-  Vec3 n;
-  if (!fitPlaneNormal(points, which, n)) return 0.0f;
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  for (const auto i : which) mean += points[i].cast<double>();
-  const Vec3 centre = (mean / static_cast<double>(which.size())).cast<float>();
+  Plane plane;
+  if (!fitPlane(points, which, plane)) return 0.0f;
   const auto on =
-      std::count_if(which.begin(), which.end(), [&](std::uint32_t i) { return std::abs(n.dot(points[i] - centre)) <= tolerance; });
+      std::count_if(which.begin(), which.end(), [&](std::uint32_t i) { return plane.distance(points[i]) <= tolerance; });
   return static_cast<float>(on) / static_cast<float>(which.size());
 }
 

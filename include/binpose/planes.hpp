@@ -36,6 +36,10 @@ struct Plane {
   [[nodiscard]] float distance(const Vec3& x) const { return std::abs(normal.dot(x) - d); }
 };
 
+/// The least-squares plane of points[which] (fitPlaneNormal, eq. 30-38, through their centroid);
+/// false for fewer than three points or a degenerate fit.
+bool fitPlane(const Points& points, std::span<const std::uint32_t> which, Plane& plane);
+
 /// Normals not all computed when the planes are looked for (see pixelNormals's pending fits):
 /// `pending` flags the points whose normal is still to come; `finish(indices)` computes those
 /// among `indices` into the normals largePlanes was given, clearing their flags;
