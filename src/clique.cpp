@@ -10,6 +10,7 @@
 #include <bit>
 #include <cstring>
 #include <deque>
+#include <numbers>
 #include <optional>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -163,23 +164,73 @@ Band bandOf(float ds, float e_gmax) {
   return {low > 0 ? low * low : -1.0f, (ds + e_gmax) * (ds + e_gmax)};
 }
 
+struct CosineBand {
+  float low, high;
+};
+
+/// The cosines a model pair's normals may have when its scene normals' cosine is `cs`: their
+/// angles differ by at most `tolerance` radians. A band reaching 0 or pi is open at that end
+/// (a cosine rounded past +-1 stays in).
+CosineBand cosineBandOf(float cs, float tolerance) {
+  constexpr float kPi = std::numbers::pi_v<float>;
+  constexpr float kOpen = 2.0f;
+  const float angle = std::acos(std::clamp(cs, -1.0f, 1.0f));
+  return {angle + tolerance >= kPi ? -kOpen : std::cos(angle + tolerance), angle <= tolerance ? kOpen : std::cos(angle - tolerance)};
+}
+
+/// A row's bands, one per column: of squared model distances (eq. 13-16) and, for the test of
+/// normals, of the model normals' cosines.
+struct Bands {
+  std::vector<float> low2, high2, cos_low, cos_high;
+};
+
+/// The model's coordinates (and normals) side by side, so the inner loop runs on SIMD lanes.
+struct Columns {
+  std::array<const float*, 3> points;
+  std::array<const float*, 3> normals;  ///< null: no test of normals
+};
+
+/// The correspondences' model points (and normals) as columns, in `storage`.
+Columns columnsOf(std::span<const Correspondence> cps, const Points& model, const Points* model_normals,
+                  std::array<std::vector<float>, 6>& storage) {
+  for (auto& v : storage) v.resize(model_normals != nullptr ? cps.size() : 0);
+  for (int k = 0; k < 3; ++k) storage[k].resize(cps.size());
+  for (std::size_t i = 0; i < cps.size(); ++i)
+    for (int k = 0; k < 3; ++k) {
+      storage[k][i] = model[cps[i].model][k];
+      if (model_normals != nullptr) storage[3 + k][i] = (*model_normals)[cps[i].model][k];
+    }
+  Columns c{{storage[0].data(), storage[1].data(), storage[2].data()}, {nullptr, nullptr, nullptr}};
+  if (model_normals != nullptr) c.normals = {storage[3].data(), storage[4].data(), storage[5].data()};
+  return c;
+}
+
 /// Row i of the consistency graph (eq. 13-16) from word `first` on, 64 partners to a word:
 /// j is linked when its squared model distance to i lies in the band of their scene distance
-/// (`low2`, `high2`, per column). Built for AVX2 as well as the baseline, the better one chosen
-/// at run time; no FMA, so every build computes the same bits.
+/// and, with normals, the cosine of their model normals in the band of their scene normals'.
+/// Built for AVX2 as well as the baseline, the better one chosen at run time; no FMA, so every
+/// build computes the same bits.
 __attribute__((target_clones("avx2", "default")))
-void linkRow(const std::array<const float*, 3>& m, const float* low2, const float* high2, int i, int n, int first,
-             std::uint64_t* row) {
+void linkRow(const Columns& m, const Bands& band, int i, int n, int first, std::uint64_t* row) {
   alignas(64) std::array<std::uint8_t, 64> linked{};
-  const float x = m[0][i], y = m[1][i], z = m[2][i];
+  const auto& [px, py, pz] = m.points;
+  const float x = px[i], y = py[i], z = pz[i];
+  const bool angles = m.normals[0] != nullptr;
+  const float nx = angles ? m.normals[0][i] : 0, ny = angles ? m.normals[1][i] : 0, nz = angles ? m.normals[2][i] : 0;
   for (int w0 = first * 64; w0 < n; w0 += 64) {
     const int count = std::min(64, n - w0);
     for (int b = 0; b < count; ++b) {
       const int j = w0 + b;
-      const float mx = m[0][j] - x, my = m[1][j] - y, mz = m[2][j] - z;
+      const float mx = px[j] - x, my = py[j] - y, mz = pz[j] - z;
       const float dm2 = mx * mx + my * my + mz * mz;
-      linked[b] = (dm2 > low2[j]) & (dm2 < high2[j]);
+      linked[b] = (dm2 > band.low2[j]) & (dm2 < band.high2[j]);
     }
+    if (angles)
+      for (int b = 0; b < count; ++b) {
+        const int j = w0 + b;
+        const float c = m.normals[0][j] * nx + m.normals[1][j] * ny + m.normals[2][j] * nz;
+        linked[b] = static_cast<std::uint8_t>(linked[b] & (c >= band.cos_low[j]) & (c <= band.cos_high[j]));
+      }
     // Eight 0/1 bytes to eight bits by one multiply (each byte's bit lands in the top byte,
     // on its own place; no two partial products meet): a byte at a time cost twice the tests.
     std::uint64_t word = 0;
@@ -264,11 +315,6 @@ void relabelled(const Graph& g, const std::vector<int>& order, Graph& sorted, st
   for (int a = 0; a < m; ++a)
     std::copy_n(xt.begin() + static_cast<std::ptrdiff_t>(order[a]) * yw, yw, sorted.mutableRow(a));
 }
-
-/// A row's bands of squared model distances, one per column.
-struct Bands {
-  std::vector<float> low2, high2;
-};
 
 }  // namespace
 
@@ -384,47 +430,48 @@ GraphWorkspace::GraphWorkspace(GraphWorkspace&&) noexcept = default;
 GraphWorkspace& GraphWorkspace::operator=(GraphWorkspace&&) noexcept = default;
 
 Graph consistencyGraph(std::span<const Correspondence> cps, const Points& scene, const Points& model, float e_gmax,
-                       GraphWorkspace* workspace) {
+                       GraphWorkspace* workspace, const NormalAgreement& normals) {
   std::optional<GraphWorkspace> own;  // made only for a caller without one
   GraphWorkspace& ws = workspace != nullptr ? *workspace : own.emplace();
   const int n = static_cast<int>(cps.size());
   Graph g(n);
   // Pairs of one scene point come in runs (a point's candidates): the scene distance, and with
   // it the band of accepted model distances, is computed once per run and shared by its pairs.
-  // Model coordinates side by side, so the inner loop runs on SIMD lanes. Row i is computed from
-  // its diagonal word on (the 64 x 64 blocks on and above the diagonal); the blocks below are
-  // those above, bit-transposed. Both distances are the same either way round, so this is the
-  // graph of every (i, j) computed in full.
+  // Row i is computed from its diagonal word on (the 64 x 64 blocks on and above the diagonal);
+  // the blocks below are those above, bit-transposed. Both tests are the same either way round,
+  // so this is the graph of every (i, j) computed in full.
   std::vector<int> run_start;  // first pair of each run of equal scene points, then n
   for (int i = 0; i < n; ++i)
     if (i == 0 || cps[i].scene != cps[i - 1].scene) run_start.push_back(i);
   run_start.push_back(n);
-  std::array<std::vector<float>, 3> c;
-  for (auto& v : c) v.resize(cps.size());
-  for (int i = 0; i < n; ++i)
-    for (int k = 0; k < 3; ++k) c[k][i] = model[cps[i].model][k];
-  const std::array<const float*, 3> coords{c[0].data(), c[1].data(), c[2].data()};
+  const bool angles = normals.tolerance > 0 && normals.scene_normals != nullptr && normals.model_normals != nullptr;
+  std::array<std::vector<float>, 6> storage;
+  const Columns columns = columnsOf(cps, model, angles ? normals.model_normals : nullptr, storage);
+  const float tolerance = normals.tolerance * std::numbers::pi_v<float> / 180.0f;
   const int runs = static_cast<int>(run_start.size()) - 1;
   tbb::parallel_for(tbb::blocked_range<int>(0, runs, 4), [&](const tbb::blocked_range<int>& range) {  // runs apart
-    // The thread's bands, one per column (every value read is written first).
-    auto& [low2, high2] = ws.impl().local<Bands>();
-    if (low2.size() < cps.size()) {
-      low2.resize(cps.size());
-      high2.resize(cps.size());
-    }
+    Bands& bands = ws.impl().local<Bands>();  // the thread's (every value read is written first)
+    for (auto* v : {&bands.low2, &bands.high2, &bands.cos_low, &bands.cos_high})
+      if (v->size() < cps.size()) v->resize(cps.size());
     for (int r = range.begin(); r < range.end(); ++r) {
       const int first_row = run_start[r];
-      const Vec3& s = scene[cps[first_row].scene];
+      const std::uint32_t si = cps[first_row].scene;
       // The bands of the columns from the row's diagonal word on, run by run.
       const auto first_run = std::upper_bound(run_start.begin(), run_start.end(), first_row / 64 * 64) - run_start.begin() - 1;
       for (auto q = first_run; q < runs; ++q) {
-        const Band band = bandOf((scene[cps[run_start[q]].scene] - s).norm(), e_gmax);
-        std::fill(low2.begin() + run_start[q], low2.begin() + run_start[q + 1], band.low2);
-        std::fill(high2.begin() + run_start[q], high2.begin() + run_start[q + 1], band.high2);
+        const std::uint32_t sq = cps[run_start[q]].scene;
+        const Band band = bandOf((scene[sq] - scene[si]).norm(), e_gmax);
+        const auto from = static_cast<std::size_t>(run_start[q]), to = static_cast<std::size_t>(run_start[q + 1]);
+        std::fill(bands.low2.begin() + from, bands.low2.begin() + to, band.low2);
+        std::fill(bands.high2.begin() + from, bands.high2.begin() + to, band.high2);
+        if (!angles) continue;
+        const CosineBand cosines = cosineBandOf((*normals.scene_normals)[si].dot((*normals.scene_normals)[sq]), tolerance);
+        std::fill(bands.cos_low.begin() + from, bands.cos_low.begin() + to, cosines.low);
+        std::fill(bands.cos_high.begin() + from, bands.cos_high.begin() + to, cosines.high);
       }
       for (int i = first_row; i < run_start[r + 1]; ++i) {
         std::uint64_t* row = g.mutableRow(i);
-        linkRow(coords, low2.data(), high2.data(), i, n, i / 64, row);
+        linkRow(columns, bands, i, n, i / 64, row);
         row[i / 64] &= ~(1ull << (i % 64));
       }
     }

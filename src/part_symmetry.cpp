@@ -38,7 +38,8 @@ Graph PartSymmetry::consistencyGraph(std::span<const Correspondence> cps, const 
     case Kind::None:
       break;
   }
-  return binpose::consistencyGraph(cps, scene, model.points, p.e_gmax, &workspace);
+  return binpose::consistencyGraph(cps, scene, model.points, p.e_gmax, &workspace,
+                                   {&scene_normals, &model.normals, p.pair_angle_tolerance});
 }
 
 std::vector<PoseFit> PartSymmetry::solve(std::span<const Correspondence> clique, const Points& scene,

@@ -22,6 +22,7 @@ StageSettings thesisStages() {
   s.voter_spacing = 0.0f;
   s.partner_spacing = 0.0f;
   s.retry_all_voters = false;
+  s.pair_angle_tolerance = 0.0f;
   s.mirror_retries = 0;
   s.alternative_cliques = 0;
   s.face_hypotheses = false;
@@ -106,6 +107,8 @@ void validateStages(const StageSettings& s) {
   share(s.prescreen_retry_share, "prescreen_retry_share");
   range(s.candidates_per_point, 1, 64, "candidates_per_point");
   if (s.clique_work_limit < 1) throw Error("clique_work_limit must be >= 1");
+  if (!(s.pair_angle_tolerance >= 0 && s.pair_angle_tolerance < 180))
+    throw Error(fmt::format("pair_angle_tolerance must lie in [0, 180) degrees, got {}", s.pair_angle_tolerance));
   range(s.mirror_retries, 0, 10, "mirror_retries");
   range(s.alternative_cliques, 0, 10, "alternative_cliques");
   share(s.alternative_min_score, "alternative_min_score");

@@ -42,6 +42,10 @@ struct StageSettings : DetectionParams {
 
   // --- clique and pose (4.5-4.6) --------------------------------------------------------------
   std::uint64_t clique_work_limit = 1000;  ///< branch-and-bound nodes per clique search (the best found is kept)
+  /// A pair of correspondences is consistent only when the angle between its scene normals
+  /// matches that between its model normals within this, degrees (0: distances alone, eq. 15-16;
+  /// a symmetric part's graph tests angles by revolution_angle_tolerance).
+  float pair_angle_tolerance = 25.0f;
   int mirror_retries = 1;     ///< searches again without a clique that fits only a mirror image, this many times
   /// After the clique that gave the pose, the largest without its pairs gives another, this many
   /// times (0: the thesis's one clique). The best of them at the ICP gate is refined and scored

@@ -283,6 +283,49 @@ TEST(Clique, ConsistencyGraphOfCandidateRunsFollowsEquations13To16) {
     }
 }
 
+TEST(Clique, ConsistencyGraphTestsTheAngleBetweenNormals) {
+  // Runs of candidates as in the default preset, each scene point's first candidate its true
+  // model point with its normal turned by the pose (plus up to 10 degrees of noise); the others
+  // random model points with random normals. With the test of normals, a pair is linked exactly
+  // when its distances agree (eq. 13-16) and its normals' angles differ by at most the tolerance.
+  Rng rng(47);
+  const auto unit = [&] { return Vec3(rng.uniform() - 0.5f, rng.uniform() - 0.5f, rng.uniform() - 0.5f).normalized(); };
+  Points model, model_normals, scene, scene_normals;
+  for (int i = 0; i < 200; ++i) {
+    model.emplace_back(Vec3(rng.uniform(), rng.uniform(), rng.uniform()) * 60.0f);
+    model_normals.push_back(unit());
+  }
+  Pose pose = Pose::Identity();
+  pose.linear() = Eigen::AngleAxisf(0.9f, Vec3(1, -2, 2).normalized()).toRotationMatrix();
+  pose.translation() = Vec3(10, 30, 500);
+  std::vector<Correspondence> cps;
+  for (std::uint32_t s = 0; s < 50; ++s) {
+    const auto truth = static_cast<std::uint32_t>(rng.below(200));
+    scene.push_back(pose * model[truth]);
+    const Eigen::AngleAxisf noise(0.1745f * rng.uniform(), unit());
+    scene_normals.push_back(noise * (pose.linear() * model_normals[truth]));
+    const std::size_t run = 1 + rng.below(8);
+    for (std::size_t k = 0; k < run; ++k) cps.push_back({s, k == 0 ? truth : static_cast<std::uint32_t>(rng.below(200))});
+  }
+  const float e_gmax = 1.5f, tolerance = 25.0f;
+  const Graph plain = consistencyGraph(cps, scene, model, e_gmax);
+  const Graph g = consistencyGraph(cps, scene, model, e_gmax, nullptr, {&scene_normals, &model_normals, tolerance});
+  const auto angle = [](const Vec3& a, const Vec3& b) { return std::acos(std::clamp(a.dot(b), -1.0f, 1.0f)) * 57.29578f; };
+  int dropped = 0;
+  for (int a = 0; a < g.size(); ++a)
+    for (int b = 0; b < g.size(); ++b) {
+      if (a == b) continue;
+      const float da = std::abs(angle(scene_normals[cps[a].scene], scene_normals[cps[b].scene]) -
+                                angle(model_normals[cps[a].model], model_normals[cps[b].model]));
+      if (std::abs(da - tolerance) < 0.01f) continue;  // on the limit: either answer, by rounding
+      ASSERT_EQ(g.adjacent(a, b), plain.adjacent(a, b) && da <= tolerance) << a << " " << b << " " << da;
+      dropped += plain.adjacent(a, b) && !g.adjacent(a, b);
+    }
+  EXPECT_GT(dropped, 0);
+  // The true pairs (noise of at most 10 degrees per normal) are all kept: one clique of 50.
+  EXPECT_EQ(maximumClique(g).vertices.size(), 50u);
+}
+
 TEST(Clique, CorePruningProvesAPlantedCliqueAmongManyVertices) {
   // 40 rigidly consistent pairs among 1000 sparse random ones: the greedy clique finds them,
   // the 40-core holds nothing else, and the search proves them largest in a handful of nodes.

@@ -74,10 +74,20 @@ class GraphWorkspace {
   std::unique_ptr<Impl> impl_;
 };
 
+/// The consistency graph's test of normals, beyond the thesis: CP_i and CP_j must also turn
+/// their normals by the same angle in the scan as in the model, within `tolerance` degrees (the
+/// angle is one of a point-pair feature's, Drost et al. 2010). A wrong pair of equal distances
+/// on a noisy scan seldom has it too.
+struct NormalAgreement {
+  const Points* scene_normals = nullptr;
+  const Points* model_normals = nullptr;
+  float tolerance = 0;  ///< degrees; 0: no test
+};
+
 /// Geometric consistency graph (eq. 13-16): CP_i and CP_j are linked when the model and scene
-/// distances between them differ by less than e_gmax.
+/// distances between them differ by less than e_gmax (and, with `normals`, their normals agree).
 Graph consistencyGraph(std::span<const Correspondence> cps, const Points& scene, const Points& model, float e_gmax,
-                       GraphWorkspace* workspace = nullptr);
+                       GraphWorkspace* workspace = nullptr, const NormalAgreement& normals = {});
 
 /// A maximum clique of g. A greedy clique (grown from the highest-degree vertices) gives a
 /// lower bound L; the search then runs only on the vertices of the L-core (those keeping at
