@@ -112,6 +112,7 @@ void validateStages(const StageSettings& s) {
   range(s.mirror_retries, 0, 10, "mirror_retries");
   range(s.alternative_cliques, 0, 10, "alternative_cliques");
   share(s.alternative_min_score, "alternative_min_score");
+  share(s.alternative_alone_score, "alternative_alone_score");
   range(s.revolution_candidates, 1, 64, "revolution_candidates");
   if (!(s.revolution_angle_tolerance > 0 && s.revolution_angle_tolerance < 90))
     throw Error(fmt::format("revolution_angle_tolerance must lie in (0, 90) degrees, got {}", s.revolution_angle_tolerance));

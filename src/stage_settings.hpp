@@ -48,13 +48,16 @@ struct StageSettings : DetectionParams {
   float pair_angle_tolerance = 25.0f;
   int mirror_retries = 1;     ///< searches again without a clique that fits only a mirror image, this many times
   /// After the clique that gave the pose, the largest without its pairs gives another, this many
-  /// times (0: the thesis's one clique). The best of them at the ICP gate is refined and scored
+  /// times (0: the thesis's one clique). On a noisy scan the largest clique is often a wrong pose
+  /// and the right one among the next. The best of them at the ICP gate is refined and scored
   /// beside the first clique's pose, and the better score is the hypothesis; it alone is
   /// verified when the first fails the pre-screen.
-  int alternative_cliques = 1;
-  /// ... when it scores at least this at the ICP gate: the largest clique stays the rule, an
-  /// other one needs strong support.
-  float alternative_min_score = 0.5f;
+  int alternative_cliques = 3;
+  /// ... when it scores at least this at the ICP gate;
+  float alternative_min_score = 0.3f;
+  /// ... and at least this to be verified alone: the largest clique stays the rule, an other one
+  /// needs strong support to stand in for it.
+  float alternative_alone_score = 0.5f;
 
   // --- symmetry (set from use_symmetry) -------------------------------------------------------
   bool use_revolution = true;       ///< a body of revolution votes for orbits (symmetry.hpp)

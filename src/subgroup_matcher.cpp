@@ -208,14 +208,11 @@ bool Matcher::prescreen(Slot& s) const {
   return false;  // far from the scan even at the ICP gate: not worth refining
 }
 
-std::optional<Pose> Matcher::otherCliquePose(const Slot& s) const {
-  std::optional<Pose> best;
-  float best_score = p.alternative_min_score;
+std::optional<OtherPose> Matcher::otherCliquePose(const Slot& s) const {
+  std::optional<OtherPose> best;
   for (const Pose& other : s.outcome.other_poses)
-    if (const float score = prescore(other, s.outcome.all_voters); score >= best_score) {
-      best_score = score;
-      best = other;
-    }
+    if (const float score = prescore(other, s.outcome.all_voters); score >= (best ? best->prescore : p.alternative_min_score))
+      best = OtherPose{other, score};
   return best;
 }
 
@@ -237,14 +234,14 @@ void Matcher::verifyOther(Slot& s, const Pose& start) const {
 void Matcher::screenRefineScore(Slot& s) const {
   Hypothesis& h = s.outcome.hypothesis;
   Detection& det = h.detection;
-  std::optional<Pose> other = p.verify ? otherCliquePose(s) : std::nullopt;
+  std::optional<OtherPose> other = p.verify ? otherCliquePose(s) : std::nullopt;
   if (p.verify && !prescreen(s)) {
-    if (!other) {
+    if (!other || other->prescore < p.alternative_alone_score) {
       s.outcome.screened_out = true;
       return;
     }
-    det.pose = *other;  // the first clique's poses fail the pre-screen, the other's passes
-    s.outcome.poses = {*other};
+    det.pose = other->pose;  // the first clique's poses fail the pre-screen, the other's stands in
+    s.outcome.poses = {other->pose};
     other.reset();
   }
   if (p.refine) {
@@ -262,7 +259,7 @@ void Matcher::screenRefineScore(Slot& s) const {
   }
   s.outcome.evidence = scoredEvidence(det.pose, h.support);
   det.score = s.outcome.evidence.score();
-  if (other) verifyOther(s, *other);  // both refined and scored: the better is taken (GroupSchedule::take)
+  if (other) verifyOther(s, other->pose);  // both refined and scored: the better is taken (GroupSchedule::take)
 }
 
 }  // namespace binpose

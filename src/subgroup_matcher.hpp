@@ -17,6 +17,12 @@
 
 namespace binpose {
 
+/// Another clique's closed-form pose and its score at the ICP gate (prescore).
+struct OtherPose {
+  Pose pose;
+  float prescore = 0;
+};
+
 /// Another clique's pose, refined and scored beside the first clique's (alternative_cliques).
 struct OtherHypothesis {
   Pose start;               ///< its closed-form pose
@@ -132,7 +138,7 @@ struct Matcher {
   bool prescreen(Slot& s) const;
   /// Of the other cliques' poses, the one scoring best at the ICP gate, when it scores at least
   /// alternative_min_score.
-  std::optional<Pose> otherCliquePose(const Slot& s) const;
+  std::optional<OtherPose> otherCliquePose(const Slot& s) const;
   /// ICP and score of that pose into the outcome's `other`.
   void verifyOther(Slot& s, const Pose& start) const;
   /// Pre-screen, ICP and score of the outcome's pose (and of the other cliques' best).

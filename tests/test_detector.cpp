@@ -269,12 +269,15 @@ TEST(Detector, BinGivesTheSameResultWhateverTheThreadCount) {
 namespace {
 
 /// The cap bin's detections with the default preset as it is and changed by `change`.
-std::pair<DetectionResult, DetectionResult> capBinFastAnd(const std::function<void(StageSettings&)>& change) {
+/// The cap bin detected with the default values (after `base`, if given) and with `change` too.
+std::pair<DetectionResult, DetectionResult> capBinFastAnd(const std::function<void(StageSettings&)>& change,
+                                                          const std::function<void(StageSettings&)>& base = {}) {
   const ModelDatabase& db = capBin().db;
-  StageSettings changed = stagesFor(defaultPreset(), db.model().diameter);
+  StageSettings first = stagesFor(defaultPreset(), db.model().diameter);
+  if (base) base(first);
+  StageSettings changed = first;
   change(changed);
-  return {Detector(db, scaledToModel(defaultPreset(), db.model().diameter)).detect(capBin().scene.cloud),
-          Detector(db, changed).detect(capBin().scene.cloud)};
+  return {Detector(db, first).detect(capBin().scene.cloud), Detector(db, changed).detect(capBin().scene.cloud)};
 }
 
 }  // namespace
@@ -304,11 +307,16 @@ TEST(Detector, CliquesNearATriedPoseAreNotVerifiedAgain) {
 }
 
 // refound_share: ICP that brings a pose to an object already found stops there, and that
-// hypothesis is dropped. On the cap bin some are, none without it, and each copy is found at
-// the same place with the same score either way (the dropped ones were duplicates).
+// hypothesis is dropped. On the cap bin with one other clique per sub-group (where such poses
+// occur) some are, none without it, and each copy is found at the same place with the same
+// score either way (the dropped ones were duplicates).
 TEST(Detector, IcpStopsAtAnObjectAlreadyFound) {
   const ModelDatabase& db = capBin().db;
-  const auto [stopping, full] = capBinFastAnd([](StageSettings& p) { p.refound_share = 0.0f; });
+  const auto one_other = [](StageSettings& p) {
+    p.alternative_cliques = 1;
+    p.alternative_min_score = 0.5f;
+  };
+  const auto [stopping, full] = capBinFastAnd([](StageSettings& p) { p.refound_share = 0.0f; }, one_other);
   EXPECT_GT(stopping.refound, 0u);
   EXPECT_EQ(full.refound, 0u);
   EXPECT_EQ(stopping.refined, full.refined);
@@ -537,6 +545,9 @@ TEST(Params, InternalValuesAreNotReadAndAbsurdOnesAreRejected) {
       {"alternative_cliques -1", [](StageSettings& s) { s.alternative_cliques = -1; }},
       {"alternative_cliques 11", [](StageSettings& s) { s.alternative_cliques = 11; }},
       {"alternative_min_score 1.5", [](StageSettings& s) { s.alternative_min_score = 1.5f; }},
+      {"alternative_alone_score -0.5", [](StageSettings& s) { s.alternative_alone_score = -0.5f; }},
+      {"pair_angle_tolerance 180", [](StageSettings& s) { s.pair_angle_tolerance = 180.0f; }},
+      {"pair_angle_tolerance NaN", [](StageSettings& s) { s.pair_angle_tolerance = NAN; }},
       {"max_outline_share -0.1", [](StageSettings& s) { s.max_outline_share = -0.1f; }},
       {"max_outline_share NaN", [](StageSettings& s) { s.max_outline_share = NAN; }},
       {"min_outline_drop 1.5", [](StageSettings& s) { s.min_outline_drop = 1.5f; }},

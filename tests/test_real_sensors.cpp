@@ -139,6 +139,33 @@ TEST(RealSensors, AlternativeCliquesFindMoreCapsOnStructuredLight) {
   EXPECT_LE(wrong_two, wrong_one);
 }
 
+// alternative_cliques and alternative_min_score: 16 copies of IPD obj 1 (a bracket, no symmetry)
+// seen by the structured-light model from 800 mm (the bench's ipd1-16-sl bin). One other clique
+// per sub-group, compared only when it scores 0.5 at the ICP gate, finds fewer brackets and
+// places two where none is; three, compared from 0.3, find more and place none wrong.
+TEST(RealSensors, ThreeOtherCliquesFindMoreBracketsOnStructuredLight) {
+  REQUIRE_DATA("ipd_parts/models/obj_000001.ply");
+  const std::string path = test::dataPath("ipd_parts/models/obj_000001.ply");
+  const Mesh mesh = readMesh(path);
+  const OrientedModel model = prepareModel(mesh, ModelParams{});
+  const ModelDatabase db = databaseOf(model);
+  SimulationParams sp;
+  sp.seed = 107;
+  sp.sensor.model = sensorModel(SensorKind::StructuredLight);
+  sp.sensor.distance = 800.0f;
+  const SimulatedScene bin = simulateBin(mesh, sp);
+  const EvalModel eval = makeEvalModel(mesh, Symmetries{});
+  const StageSettings three = stageSettings(scaledToModel(defaultPreset(), model.diameter), model.diameter);
+  StageSettings one = three;
+  one.alternative_cliques = 1;
+  one.alternative_min_score = 0.5f;
+  const auto [right_one, wrong_one] = rightAndWrong(Detector(db, one).detect(bin.cloud), bin, eval, path);
+  const auto [right_three, wrong_three] = rightAndWrong(Detector(db, three).detect(bin.cloud), bin, eval, path);
+  std::printf("one other clique: %d right, %d wrong; three: %d right, %d wrong\n", right_one, wrong_one, right_three, wrong_three);
+  EXPECT_GT(right_three, right_one);
+  EXPECT_LT(wrong_three, wrong_one);
+}
+
 // face_hypotheses: IPD obj 8 (a gear) in 16 copies seen by the industrial sensor model from 1 m
 // (the bench's ipd8-16-ind bin). The sensor drops the teeth's sides, seen edge-on, so that a gear
 // lying flat shows one flat face: its point pairs are those of any flat patch and give no clique
