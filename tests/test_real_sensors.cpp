@@ -110,6 +110,28 @@ std::pair<int, int> rightAndWrong(const DetectionResult& result, const Simulated
   return {report.matched, report.detections - report.matched};
 }
 
+/// An IPD part's model and database, and 16 copies of it in a seeded bin seen by `sensor`.
+struct IpdBin {
+  std::string path;
+  Mesh mesh;
+  OrientedModel model;
+  ModelDatabase db;
+  SimulatedScene bin;
+};
+
+IpdBin ipdBin(const std::string& file, std::uint64_t seed, const SensorParams& sensor) {
+  IpdBin b;
+  b.path = test::dataPath("ipd_parts/models/" + file);
+  b.mesh = readMesh(b.path);
+  b.model = prepareModel(b.mesh, ModelParams{});
+  b.db = databaseOf(b.model);
+  SimulationParams sp;
+  sp.seed = seed;
+  sp.sensor = sensor;
+  b.bin = simulateBin(b.mesh, sp);
+  return b;
+}
+
 }  // namespace
 
 // alternative_cliques: a 16-cap bin seen by the structured-light model from 800 mm (the bench's
@@ -145,22 +167,17 @@ TEST(RealSensors, AlternativeCliquesFindMoreCapsOnStructuredLight) {
 // places two where none is; three, compared from 0.3, find more and place none wrong.
 TEST(RealSensors, ThreeOtherCliquesFindMoreBracketsOnStructuredLight) {
   REQUIRE_DATA("ipd_parts/models/obj_000001.ply");
-  const std::string path = test::dataPath("ipd_parts/models/obj_000001.ply");
-  const Mesh mesh = readMesh(path);
-  const OrientedModel model = prepareModel(mesh, ModelParams{});
-  const ModelDatabase db = databaseOf(model);
-  SimulationParams sp;
-  sp.seed = 107;
-  sp.sensor.model = sensorModel(SensorKind::StructuredLight);
-  sp.sensor.distance = 800.0f;
-  const SimulatedScene bin = simulateBin(mesh, sp);
-  const EvalModel eval = makeEvalModel(mesh, Symmetries{});
-  const StageSettings three = stageSettings(scaledToModel(defaultPreset(), model.diameter), model.diameter);
+  SensorParams sensor;
+  sensor.model = sensorModel(SensorKind::StructuredLight);
+  sensor.distance = 800.0f;
+  const IpdBin b = ipdBin("obj_000001.ply", 107, sensor);
+  const EvalModel eval = makeEvalModel(b.mesh, Symmetries{});
+  const StageSettings three = stageSettings(scaledToModel(defaultPreset(), b.model.diameter), b.model.diameter);
   StageSettings one = three;
   one.alternative_cliques = 1;
   one.alternative_min_score = 0.5f;
-  const auto [right_one, wrong_one] = rightAndWrong(Detector(db, one).detect(bin.cloud), bin, eval, path);
-  const auto [right_three, wrong_three] = rightAndWrong(Detector(db, three).detect(bin.cloud), bin, eval, path);
+  const auto [right_one, wrong_one] = rightAndWrong(Detector(b.db, one).detect(b.bin.cloud), b.bin, eval, b.path);
+  const auto [right_three, wrong_three] = rightAndWrong(Detector(b.db, three).detect(b.bin.cloud), b.bin, eval, b.path);
   std::printf("one other clique: %d right, %d wrong; three: %d right, %d wrong\n", right_one, wrong_one, right_three, wrong_three);
   EXPECT_GT(right_three, right_one);
   EXPECT_LT(wrong_three, wrong_one);
@@ -173,27 +190,22 @@ TEST(RealSensors, ThreeOtherCliquesFindMoreBracketsOnStructuredLight) {
 // find two more copies (12 -> 14 right) and place none wrong.
 TEST(RealSensors, FaceHypothesesFindGearsLyingFlatOnIndustrialScan) {
   REQUIRE_DATA("ipd_parts/models/obj_000008.ply");
-  const std::string path = test::dataPath("ipd_parts/models/obj_000008.ply");
-  const Mesh mesh = readMesh(path);
-  const OrientedModel model = prepareModel(mesh, ModelParams{});
-  const ModelDatabase db = databaseOf(model);
-  SimulationParams sp;
-  sp.seed = 105;
-  sp.sensor.model = sensorModel(SensorKind::Industrial);
-  sp.sensor.distance = 1000.0f;
-  sp.sensor.width = 1280;
-  sp.sensor.height = 960;
-  sp.sensor.fx = sp.sensor.fy = 1100;
-  sp.sensor.cx = 639.5;
-  sp.sensor.cy = 479.5;
-  const SimulatedScene bin = simulateBin(mesh, sp);
-  const EvalModel eval = makeEvalModel(mesh, readSymmetries(test::dataPath("ipd_parts/models/models_info.json"), "8"));
-  StageSettings without = stageSettings(scaledToModel(defaultPreset(), model.diameter), model.diameter);
+  SensorParams sensor;
+  sensor.model = sensorModel(SensorKind::Industrial);
+  sensor.distance = 1000.0f;
+  sensor.width = 1280;
+  sensor.height = 960;
+  sensor.fx = sensor.fy = 1100;
+  sensor.cx = 639.5;
+  sensor.cy = 479.5;
+  const IpdBin b = ipdBin("obj_000008.ply", 105, sensor);
+  const EvalModel eval = makeEvalModel(b.mesh, readSymmetries(test::dataPath("ipd_parts/models/models_info.json"), "8"));
+  StageSettings without = stageSettings(scaledToModel(defaultPreset(), b.model.diameter), b.model.diameter);
   without.face_hypotheses = false;
   StageSettings with = without;
   with.face_hypotheses = true;
-  const auto [right_without, wrong_without] = rightAndWrong(Detector(db, without).detect(bin.cloud), bin, eval, path);
-  const auto [right_with, wrong_with] = rightAndWrong(Detector(db, with).detect(bin.cloud), bin, eval, path);
+  const auto [right_without, wrong_without] = rightAndWrong(Detector(b.db, without).detect(b.bin.cloud), b.bin, eval, b.path);
+  const auto [right_with, wrong_with] = rightAndWrong(Detector(b.db, with).detect(b.bin.cloud), b.bin, eval, b.path);
   std::printf("without faces: %d right, %d wrong; with: %d right, %d wrong\n", right_without, wrong_without, right_with, wrong_with);
   EXPECT_GE(right_with, right_without + 2);  // 12 -> 14
   EXPECT_LE(wrong_with, wrong_without);
