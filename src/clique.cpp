@@ -193,8 +193,8 @@ struct Columns {
 /// The correspondences' model points (and normals) as columns, in `storage`.
 Columns columnsOf(std::span<const Correspondence> cps, const Points& model, const Points* model_normals,
                   std::array<std::vector<float>, 6>& storage) {
-  for (auto& v : storage) v.resize(model_normals != nullptr ? cps.size() : 0);
-  for (int k = 0; k < 3; ++k) storage[k].resize(cps.size());
+  const int used = model_normals != nullptr ? 6 : 3;  // the points' columns, then the normals'
+  for (int k = 0; k < used; ++k) storage[k].resize(cps.size());
   for (std::size_t i = 0; i < cps.size(); ++i)
     for (int k = 0; k < 3; ++k) {
       storage[k][i] = model[cps[i].model][k];
