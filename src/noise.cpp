@@ -32,14 +32,41 @@ constexpr int kMostNeighbours = 32;
 constexpr float kSigmasOfConsistency = 2.3f;
 /// The verification's tolerance at least this many sigmas: 87 % of a right surface's points.
 constexpr float kSigmasOfSupport = 1.5f;
+/// farNoisyRange's bands: each this many times as far as the one before; a band judged from
+/// this many fits; noisy when this many times as noisy as the least noisy nearer band.
+constexpr float kBandRatio = 1.25f;
+constexpr std::size_t kLeastBandFits = 12;
+constexpr float kNoisierThanBest = 3.0f;
 
 }  // namespace
 
-NoiseEstimate estimateNoise(const Points& cloud, std::span<const std::uint32_t> chosen, const NeighbourQuery& neighbours) {
+float farNoisyRange(std::vector<NoiseSample> samples, float limit) {
+  if (!(limit > 0) || samples.empty()) return INFINITY;
+  std::sort(samples.begin(), samples.end(), [](const NoiseSample& a, const NoiseSample& b) { return a.range < b.range; });
+  float best = INFINITY;  // the least median residual of the bands judged so far
+  std::vector<float> band;
+  for (std::size_t first = 0; first < samples.size();) {
+    const float start = samples[first].range, end = std::max(start, 1e-3f) * kBandRatio;
+    band.clear();
+    std::size_t next = first;
+    for (; next < samples.size() && samples[next].range < end; ++next) band.push_back(samples[next].sigma);
+    if (band.size() >= kLeastBandFits) {
+      const float sigma = medianOf(band);
+      if (sigma > limit && sigma > kNoisierThanBest * best) return start;
+      best = std::min(best, sigma);
+    }
+    first = next;
+  }
+  return INFINITY;
+}
+
+NoiseEstimate estimateNoise(const Points& cloud, std::span<const std::uint32_t> chosen, const NeighbourQuery& neighbours,
+                            const Vec3& viewpoint, float far_limit) {
   NoiseEstimate out;
   if (chosen.empty()) return out;
   const std::size_t step = std::max<std::size_t>(1, chosen.size() / kNoiseSamples);
-  std::vector<float> sigmas, reaches;
+  std::vector<NoiseSample> fits;
+  std::vector<float> reaches;
   std::uint32_t idx[kNoiseNeighbours];
   for (std::size_t s = 0; s < chosen.size(); s += step) {
     const std::uint32_t i = chosen[s];
@@ -57,13 +84,20 @@ NoiseEstimate estimateNoise(const Points& cloud, std::span<const std::uint32_t> 
     std::nth_element(distances, distances + kReachNeighbours - 1, distances + kNoiseNeighbours);
     const double reach = distances[kReachNeighbours - 1];
     const double lambda0 = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(W, Eigen::EigenvaluesOnly).eigenvalues()(0);
-    sigmas.push_back(static_cast<float>(std::sqrt(std::max(0.0, lambda0) / double(kNoiseNeighbours - 3))));
+    fits.push_back({(cloud[i] - viewpoint).norm(), static_cast<float>(std::sqrt(std::max(0.0, lambda0) / double(kNoiseNeighbours - 3)))});
     reaches.push_back(static_cast<float>(reach));
   }
+  out.far_range = farNoisyRange(fits, far_limit);
+  std::vector<float> sigmas, near_reaches;
+  for (std::size_t k = 0; k < fits.size(); ++k)
+    if (fits[k].range < out.far_range) {
+      sigmas.push_back(fits[k].sigma);
+      near_reaches.push_back(reaches[k]);
+    }
   if (sigmas.empty()) return out;
   out.samples = static_cast<int>(sigmas.size());
   out.sigma = medianOf(sigmas);
-  out.reach = medianOf(reaches);
+  out.reach = medianOf(near_reaches);
   return out;
 }
 

@@ -3,9 +3,11 @@
 #include "stage_settings.hpp"
 #include <binpose/types.hpp>
 
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <span>
+#include <vector>
 
 namespace binpose {
 
@@ -13,7 +15,24 @@ struct NoiseEstimate {
   float sigma = 0;   ///< median residual of a point's plane fit, 1 sigma, mm
   float reach = 0;   ///< median distance to the fit's farthest neighbour, mm
   int samples = 0;   ///< plane fits it rests on (0: none could be made; sigma and reach 0)
+  /// Points this far from the viewpoint or farther lie where the scan is too noisy to match
+  /// (farNoisyRange), mm; infinity: nowhere. sigma and reach are measured nearer.
+  float far_range = INFINITY;
 };
+
+/// Where a plane fit was made: its distance from the viewpoint and its residual, mm.
+struct NoiseSample {
+  float range = 0;
+  float sigma = 0;
+};
+
+/// The range from which the scan is too noisy to match, from its plane fits: the nearest band of
+/// ranges (each 1.25 times the one before) whose median residual is over `limit` and over three
+/// times that of the least noisy band nearer than it, bands of at least 12 fits judged; the
+/// bands beyond it count as noisy too. A depth sensor's noise grows with range (a Kinect's as
+/// its square): a room's far walls behind a bin are measured several times noisier than the bin.
+/// Infinity when there is no such band, or `limit` is 0.
+float farNoisyRange(std::vector<NoiseSample> samples, float limit);
 
 /// Up to `count` neighbours of cloud point i (itself included) into `indices`; how many it gave
 /// (0: it could not say).
@@ -21,8 +40,10 @@ using NeighbourQuery = std::function<std::size_t(std::uint32_t i, std::size_t co
 
 /// Fits planes to the kNoiseNeighbours nearest points of an even sample of `chosen` and takes
 /// the medians of their residuals (sqrt(lambda_0 / (k - 3)), eq. 33-35's least eigenvalue) and
-/// of their reaches. Deterministic.
-NoiseEstimate estimateNoise(const Points& cloud, std::span<const std::uint32_t> chosen, const NeighbourQuery& neighbours);
+/// of their reaches. With `far_limit` > 0 (mm), farNoisyRange of the fits by their distance from
+/// `viewpoint` is found too, and the medians are those of the fits nearer than it. Deterministic.
+NoiseEstimate estimateNoise(const Points& cloud, std::span<const std::uint32_t> chosen, const NeighbourQuery& neighbours,
+                            const Vec3& viewpoint = Vec3::Zero(), float far_limit = 0.0f);
 
 /// The values that depend on the noise, raised to what a scan this noisy needs (never lowered):
 /// the normals' neighbours k (so that a fit's tilt from noise stays small), e_gmax, the plane

@@ -85,8 +85,10 @@ Points orientedNormals(const PointCloud& scan, const StageSettings& p, PreparedS
   // built. A single view saved as an unorganized file (a PLY from the sensor's software) is as
   // noisy as its depth image; a clean or resampled scan reads low and keeps the defaults.
   const auto measure = [&](const NeighbourQuery& query) {
-    out.noise = estimateNoise(scan.points, chosen, query);
+    out.noise = estimateNoise(scan.points, chosen, query, p.viewpoint, p.adapt_to_noise ? p.far_noise : 0.0f);
     out.params = p.adapt_to_noise ? adaptedToNoise(p, out.noise) : p;
+    if (std::isfinite(out.noise.far_range))  // too noisy there to match: those points are not sampled
+      std::erase_if(chosen, [&](std::uint32_t i) { return (scan.points[i] - p.viewpoint).norm() >= out.noise.far_range; });
   };
   const auto normalsFor = [&] {
     normals = pixelNormals(*out.pixels, scan.points, chosen, out.params.k_normals, p.viewpoint, deferred, &grid_ready, late);

@@ -15,6 +15,7 @@ StageSettings thesisStages() {
   StageSettings s;
   s.subsampling = Subsampling::Random;
   s.adapt_to_noise = false;
+  s.far_noise = 0.0f;
   s.remove_planes = false;
   s.candidates_per_point = 1;
   s.candidate_spacing = 0.0f;
@@ -67,6 +68,7 @@ StageSettings stageSettings(const DetectionParams& params, float model_diameter)
   s.plane_tolerance *= k;
   s.icp_max_distance *= k;
   s.verify_tolerance *= k;
+  s.far_noise *= k;
   return s;
 }
 
@@ -84,6 +86,7 @@ void validateStages(const StageSettings& s) {
   validate(static_cast<const DetectionParams&>(s));
   positive(s.vote_radius, "vote_radius");
   nonNegative(s.plane_min_area, "plane_min_area");
+  nonNegative(s.far_noise, "far_noise");
   positive(s.plane_tolerance, "plane_tolerance");
   nonNegative(s.candidate_spacing, "candidate_spacing");
   nonNegative(s.partner_spacing, "partner_spacing");

@@ -17,6 +17,10 @@ struct StageSettings : DetectionParams {
   /// Measure a depth image's noise and raise what depends on it for a noisy one (k_normals,
   /// e_gmax, plane_tolerance, verify_tolerance; noise.cpp).
   bool adapt_to_noise = true;
+  /// ... and leave out of the matching the ranges where the scan is measured this noisy (1 sigma,
+  /// mm; 1.2 mm for the 60 mm part: 2 % of its diameter) and three times noisier than nearer
+  /// (farNoisyRange, noise.hpp): a room's far walls behind the bin (0: none left out).
+  float far_noise = 1.2f;
   /// Take the bin's floor and walls (connected flat patches of at least plane_min_area) out of
   /// the voting points (planes.hpp); they stay in the scan for ICP and verification.
   bool remove_planes = true;

@@ -14,28 +14,28 @@ using namespace binpose;
 
 namespace {
 
-/// A 200 x 200 grid of points 1 mm apart on the plane z = 0.3 x + 500, with Gaussian noise of
-/// `sigma` mm along z (Box-Muller on a seeded generator).
-Points noisyPlane(float sigma, std::uint64_t seed) {
+/// A 200 x 200 grid of points `spacing` mm apart on the plane z = 0.3 x + `depth`, with Gaussian
+/// noise of `sigma` mm along z (Box-Muller on a seeded generator).
+Points noisyPlane(float sigma, std::uint64_t seed, float spacing = 1.0f, float depth = 500.0f) {
   Rng rng(seed);
   Points points;
   for (int y = 0; y < 200; ++y)
     for (int x = 0; x < 200; ++x) {
       const double u1 = std::max(rng.uniform(), 1e-12), u2 = rng.uniform();
       const auto g = static_cast<float>(std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * M_PI * u2));
-      points.emplace_back(float(x), float(y), 0.3f * float(x) + 500.0f + sigma * g);
+      points.emplace_back(spacing * float(x), spacing * float(y), 0.3f * spacing * float(x) + depth + sigma * g);
     }
   return points;
 }
 
-NoiseEstimate measured(const Points& points) {
+NoiseEstimate measured(const Points& points, float far_limit = 0.0f) {
   const PointGrid grid(points);
   std::vector<std::uint32_t> all(points.size());
   std::iota(all.begin(), all.end(), 0u);
   return estimateNoise(points, all, [&](std::uint32_t i, std::size_t k, std::uint32_t* idx) {
     float d2[32];
     return grid.knn(points[i], k, idx, d2);
-  });
+  }, Vec3::Zero(), far_limit);
 }
 
 }  // namespace
@@ -79,4 +79,48 @@ TEST(Noise, OnlyANoisyScanRaisesTheValues) {
   loose.e_gmax = 10.0f;
   EXPECT_EQ(adaptedToNoise(loose, {1.0f, 2.0f, 256}).e_gmax, 10.0f);
   EXPECT_EQ(adaptedToNoise(p, {1.0f, 2.0f, 0}).k_normals, p.k_normals);  // no estimate: no change
+}
+
+// Bands of ranges, each 1.25 times the one before: the first judged band (12 fits or more) noisier
+// than the limit and three times noisier than the least noisy band nearer than it starts what is
+// left out. A noisy band nearer than every quieter one, or one of few fits, is kept.
+TEST(Noise, FarNoisyRangeStartsAtTheFirstFarNoisyBand) {
+  const auto band = [](std::vector<NoiseSample>& s, float from, float to, float sigma, int fits = 30) {
+    for (int i = 0; i < fits; ++i) s.push_back({from + (to - from) * float(i) / float(fits), sigma});
+  };
+  std::vector<NoiseSample> room;  // a bin at 0.8-1.2 m, the room's wall at 2.5-3 m
+  band(room, 800, 1000, 1.0f);
+  band(room, 1000, 1200, 1.4f);
+  band(room, 2500, 3000, 6.0f);
+  EXPECT_EQ(farNoisyRange(room, 2.0f), 2500.0f);
+  EXPECT_EQ(farNoisyRange(room, 7.0f), INFINITY);  // noisy, but within what the part allows
+  EXPECT_EQ(farNoisyRange(room, 0.0f), INFINITY);  // off
+  EXPECT_EQ(farNoisyRange(room, 1.2f), 2500.0f);   // 1.4 is over the limit but not 3 x 1.0
+  std::vector<NoiseSample> near_noisy;  // the noisy band is the nearest
+  band(near_noisy, 500, 600, 6.0f);
+  band(near_noisy, 800, 1000, 1.0f);
+  EXPECT_EQ(farNoisyRange(near_noisy, 2.0f), INFINITY);
+  std::vector<NoiseSample> few;  // five fits do not judge a band
+  band(few, 800, 1000, 1.0f);
+  band(few, 2500, 3000, 6.0f, 5);
+  EXPECT_EQ(farNoisyRange(few, 2.0f), INFINITY);
+  EXPECT_EQ(farNoisyRange({}, 2.0f), INFINITY);
+}
+
+// A clean plane 0.5 m away and a rough one 2.5 m away (3 mm noise, 5 mm apart), as many points
+// each: measured together the median lies above the near plane's; with a limit, the far plane is left out from a
+// range between them and the noise is the near plane's.
+TEST(Noise, FarNoisyPlaneIsLeftOutOfTheEstimate) {
+  Points points = noisyPlane(0.2f, 7);
+  for (const Vec3& q : noisyPlane(3.0f, 8, 5.0f, 2500.0f)) points.push_back(q);
+  const NoiseEstimate mixed = measured(points), apart = measured(points, 1.2f);
+  EXPECT_TRUE(std::isinf(mixed.far_range));
+  ASSERT_TRUE(std::isfinite(apart.far_range));
+  EXPECT_GT(apart.far_range, 650.0f);  // the near plane lies within 500-630 mm of the origin
+  EXPECT_LT(apart.far_range, 2520.0f);  // the far plane's nearest points, with their noise
+  EXPECT_GT(apart.sigma, 0.15f);
+  EXPECT_LT(apart.sigma, 0.21f);
+  EXPECT_GT(mixed.sigma, 1.2f * apart.sigma);
+  EXPECT_GT(apart.samples, 100);
+  EXPECT_LT(apart.samples, mixed.samples);
 }
