@@ -25,6 +25,13 @@ constexpr std::size_t kReachNeighbours = 8;
 constexpr float kSoundTilt = 0.08f;
 /// The most neighbours a noisy scan's normals fit (the pixel search's limit).
 constexpr int kMostNeighbours = 32;
+/// Over this tilt (twice the sound one) the normals stay rough even on kMostNeighbours (the
+/// simulated Kinect-class bins read 0.43, the real IC-BIN frames 0.24-0.27; the industrial model
+/// 0.15, the ideal sensor 0.07-0.11), and a symmetric part's pairs are let through at angles up to
+/// kRoughRevolutionTolerance: on the 12 seeded structured-light bins 78 -> 82 right (18 and 25
+/// degrees: 80 and 79), the industrial and clean bins unchanged.
+constexpr float kRoughTilt = 2.0f * kSoundTilt;
+constexpr float kRoughRevolutionTolerance = 20.0f;
 /// e_gmax and the plane tolerance at least this many sigmas: two noisy points' distance varies by
 /// about sqrt(2) sigma (2.3 sigma is 1.6 of its sigmas), a plane's points lie within about 2 sigma
 /// of it. Set with the 24-neighbour estimate on the bench's structured-light bins and the IC-BIN
@@ -109,6 +116,7 @@ StageSettings adaptedToNoise(const StageSettings& p, const NoiseEstimate& noise)
     const auto k = static_cast<int>(std::lround(static_cast<float>(p.k_normals) * tilt / kSoundTilt));
     a.k_normals = std::clamp(k, p.k_normals, std::max(p.k_normals, kMostNeighbours));
   }
+  if (tilt > kRoughTilt) a.revolution_angle_tolerance = std::max(p.revolution_angle_tolerance, kRoughRevolutionTolerance);
   a.e_gmax = std::max(p.e_gmax, kSigmasOfConsistency * noise.sigma);
   a.plane_tolerance = std::max(p.plane_tolerance, kSigmasOfConsistency * noise.sigma);
   a.verify_tolerance = std::max(p.verify_tolerance, kSigmasOfSupport * noise.sigma);

@@ -47,7 +47,8 @@ NoiseEstimate estimateNoise(const Points& cloud, std::span<const std::uint32_t> 
 
 /// The values that depend on the noise, raised to what a scan this noisy needs (never lowered):
 /// the normals' neighbours k (so that a fit's tilt from noise stays small), e_gmax, the plane
-/// tolerance and the verification tolerance (each a multiple of sigma). The same parameters for
+/// tolerance and the verification tolerance (each a multiple of sigma), and on a scan whose
+/// normals stay rough, the symmetric parts' angle tolerance. The same parameters for
 /// a scan as clean as the simulator's ideal sensor.
 StageSettings adaptedToNoise(const StageSettings& p, const NoiseEstimate& noise);
 

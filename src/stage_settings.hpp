@@ -15,7 +15,7 @@ struct StageSettings : DetectionParams {
   // --- scene preparation (5.2.1-5.2.2) ------------------------------------------------------
   Subsampling subsampling = Subsampling::Voxel;
   /// Measure a depth image's noise and raise what depends on it for a noisy one (k_normals,
-  /// e_gmax, plane_tolerance, verify_tolerance; noise.cpp).
+  /// e_gmax, plane_tolerance, verify_tolerance, revolution_angle_tolerance; noise.cpp).
   bool adapt_to_noise = true;
   /// ... and leave out of the matching the ranges where the scan is measured this noisy (1 sigma,
   /// mm; 1.2 mm for the 60 mm part: 2 % of its diameter) and three times noisier than nearer

@@ -61,7 +61,8 @@ TEST(Noise, PlaneFitResidualsMeasureTheNoise) {
 }
 
 // A clean scan keeps every value; a noisy one raises the normals' k (capped), e_gmax and the
-// tolerances, and never lowers a value the user set higher.
+// tolerances (a symmetric part's angles only where the normals stay rough), and never lowers a
+// value the user set higher.
 TEST(Noise, OnlyANoisyScanRaisesTheValues) {
   const StageSettings p = stageSettings(defaultPreset(), 60.0f);
   const StageSettings clean = adaptedToNoise(p, {0.05f, 1.5f, 256});
@@ -69,7 +70,12 @@ TEST(Noise, OnlyANoisyScanRaisesTheValues) {
   EXPECT_EQ(clean.e_gmax, p.e_gmax);
   EXPECT_EQ(clean.verify_tolerance, p.verify_tolerance);
   EXPECT_EQ(clean.plane_tolerance, p.plane_tolerance);
+  EXPECT_EQ(clean.revolution_angle_tolerance, p.revolution_angle_tolerance);
+  const StageSettings mild = adaptedToNoise(p, {0.24f, 2.0f, 256});  // tilt 0.12: k raised, angles kept
+  EXPECT_GT(mild.k_normals, p.k_normals);
+  EXPECT_EQ(mild.revolution_angle_tolerance, p.revolution_angle_tolerance);
   const StageSettings noisy = adaptedToNoise(p, {1.0f, 2.0f, 256});
+  EXPECT_EQ(noisy.revolution_angle_tolerance, 20.0f);  // tilt 0.5: rough normals
   EXPECT_GT(noisy.k_normals, p.k_normals);
   EXPECT_LE(noisy.k_normals, 32);
   EXPECT_GT(noisy.e_gmax, 2.0f);
