@@ -73,7 +73,6 @@ NoiseEstimate estimateNoise(const Points& cloud, std::span<const std::uint32_t> 
   if (chosen.empty()) return out;
   const std::size_t step = std::max<std::size_t>(1, chosen.size() / kNoiseSamples);
   std::vector<NoiseSample> fits;
-  std::vector<float> reaches;
   std::uint32_t idx[kNoiseNeighbours];
   for (std::size_t s = 0; s < chosen.size(); s += step) {
     const std::uint32_t i = chosen[s];
@@ -89,22 +88,21 @@ NoiseEstimate estimateNoise(const Points& cloud, std::span<const std::uint32_t> 
       distances[k] = (cloud[idx[k]] - cloud[i]).norm();
     }
     std::nth_element(distances, distances + kReachNeighbours - 1, distances + kNoiseNeighbours);
-    const double reach = distances[kReachNeighbours - 1];
     const double lambda0 = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(W, Eigen::EigenvaluesOnly).eigenvalues()(0);
-    fits.push_back({(cloud[i] - viewpoint).norm(), static_cast<float>(std::sqrt(std::max(0.0, lambda0) / double(kNoiseNeighbours - 3)))});
-    reaches.push_back(static_cast<float>(reach));
+    const auto sigma = static_cast<float>(std::sqrt(std::max(0.0, lambda0) / double(kNoiseNeighbours - 3)));
+    fits.push_back({(cloud[i] - viewpoint).norm(), sigma, distances[kReachNeighbours - 1]});
   }
   out.far_range = farNoisyRange(fits, far_limit);
-  std::vector<float> sigmas, near_reaches;
-  for (std::size_t k = 0; k < fits.size(); ++k)
-    if (fits[k].range < out.far_range) {
-      sigmas.push_back(fits[k].sigma);
-      near_reaches.push_back(reaches[k]);
+  std::vector<float> sigmas, reaches;  // of the fits nearer than far_range
+  for (const NoiseSample& f : fits)
+    if (f.range < out.far_range) {
+      sigmas.push_back(f.sigma);
+      reaches.push_back(f.reach);
     }
   if (sigmas.empty()) return out;
   out.samples = static_cast<int>(sigmas.size());
   out.sigma = medianOf(sigmas);
-  out.reach = medianOf(near_reaches);
+  out.reach = medianOf(reaches);
   return out;
 }
 

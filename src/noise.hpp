@@ -20,10 +20,11 @@ struct NoiseEstimate {
   float far_range = INFINITY;
 };
 
-/// Where a plane fit was made: its distance from the viewpoint and its residual, mm.
+/// One plane fit: its distance from the viewpoint, its residual and its reach, mm.
 struct NoiseSample {
   float range = 0;
   float sigma = 0;
+  float reach = 0;
 };
 
 /// The range from which the scan is too noisy to match, from its plane fits: the nearest band of
@@ -48,8 +49,8 @@ NoiseEstimate estimateNoise(const Points& cloud, std::span<const std::uint32_t> 
 /// The values that depend on the noise, raised to what a scan this noisy needs (never lowered):
 /// the normals' neighbours k (so that a fit's tilt from noise stays small), e_gmax, the plane
 /// tolerance and the verification tolerance (each a multiple of sigma), and on a scan whose
-/// normals stay rough, the symmetric parts' angle tolerance. The same parameters for
-/// a scan as clean as the simulator's ideal sensor.
+/// normals stay rough, the symmetric parts' angle tolerance. The same parameters for a scan as
+/// clean as the simulator's ideal sensor.
 StageSettings adaptedToNoise(const StageSettings& p, const NoiseEstimate& noise);
 
 }  // namespace binpose

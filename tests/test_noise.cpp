@@ -114,8 +114,8 @@ TEST(Noise, FarNoisyRangeStartsAtTheFirstFarNoisyBand) {
 }
 
 // A clean plane 0.5 m away and a rough one 2.5 m away (3 mm noise, 5 mm apart), as many points
-// each: measured together the median lies above the near plane's; with a limit, the far plane is left out from a
-// range between them and the noise is the near plane's.
+// each: measured together the median lies above the near plane's; with a limit, the far plane is
+// left out from a range between them and the noise is the near plane's.
 TEST(Noise, FarNoisyPlaneIsLeftOutOfTheEstimate) {
   Points points = noisyPlane(0.2f, 7);
   for (const Vec3& q : noisyPlane(3.0f, 8, 5.0f, 2500.0f)) points.push_back(q);
