@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <numeric>
 #include <optional>
+#include <span>
 
 namespace binpose {
 
@@ -26,6 +27,11 @@ constexpr float kLinkSpacings = 2.5f;
 /// A region this share of a face's area to this share: the face about wholly in view, so that
 /// its centre is the region's.
 constexpr float kLeastAreaShare = 0.6f, kMostAreaShare = 1.3f;
+/// A region too large for any face but as large as 2 to this many copies of one is tried in
+/// pieces, one per copy lying side by side.
+constexpr int kMostCopies = 4;
+/// k-means steps of a split (from farthest-point seeds, a few settle touching faces).
+constexpr int kSplitSteps = 8;
 /// ... and its extent along each principal axis (RMS from the centre) within this share of the face's.
 constexpr float kLeastSpreadShare = 0.75f;
 /// The turn about the face's normal: first in kSpins steps, then in steps of kFineDegrees and
@@ -107,6 +113,35 @@ struct FlatRegion {
   float area = 0;
 };
 
+/// The area (mm^2) that points[members] cover on their plane: the cells of side `spacing` in the
+/// plane that they fall in. Sub-sampled to one point per voxel of that side, a region fills about
+/// every cell it covers, whatever its tilt to the voxels; counting its points would also count
+/// the voxels a plane crosses twice where noise straddles a voxel boundary (a fifth to a third
+/// more area on a face square to the sensor).
+float coveredArea(const Points& points, std::span<const std::uint32_t> members, const PlaneFit& plane, float spacing) {
+  const Vec3 u = plane.normal.unitOrthogonal(), w = plane.normal.cross(u);
+  std::vector<std::uint64_t> cells;
+  cells.reserve(members.size());
+  for (const std::uint32_t i : members) {
+    const Vec3 d = points[i] - plane.centre;
+    const auto cu = static_cast<std::uint32_t>(static_cast<std::int32_t>(std::floor(d.dot(u) / spacing)));
+    const auto cw = static_cast<std::uint32_t>(static_cast<std::int32_t>(std::floor(d.dot(w) / spacing)));
+    cells.push_back(static_cast<std::uint64_t>(cu) << 32 | cw);
+  }
+  std::sort(cells.begin(), cells.end());
+  const auto distinct = std::unique(cells.begin(), cells.end()) - cells.begin();
+  return static_cast<float>(distinct) * spacing * spacing;
+}
+
+/// The flat region of points[members]: its plane fit, turned towards the viewpoint, and the area it covers.
+FlatRegion regionOf(const Matcher& m, std::vector<std::uint32_t> members, float spacing) {
+  FlatRegion region;
+  region.plane = fitPlane(m.scene.points, members, m.p.viewpoint - m.scene.points[members.front()]);
+  region.area = coveredArea(m.scene.points, members, region.plane, spacing);
+  region.members = std::move(members);
+  return region;
+}
+
 std::vector<FlatRegion> flatRegions(const Matcher& m, const std::vector<char>& removed, float least_area) {
   const PreparedScene& scene = m.scene;
   std::vector<std::uint32_t> left;  // the points no detection explains
@@ -116,16 +151,85 @@ std::vector<FlatRegion> flatRegions(const Matcher& m, const std::vector<char>& r
   std::vector<FlatRegion> flat;
   const float min_cos = std::cos(kRegionDegrees * static_cast<float>(M_PI) / 180.0f);
   const auto joins = [&](std::uint32_t b, std::uint32_t a, std::uint32_t) { return scene.normals[b].dot(scene.normals[a]) >= min_cos; };
-  // A plane crosses at least one voxel per spacing^2 (below): fewer points cannot make the area.
+  // Each point covers at most one cell of spacing^2 (coveredArea): fewer cannot make the area.
   const auto fewest = static_cast<std::size_t>(least_area / (spacing * spacing));
-  for (const auto& members : regionsOf(scene.points, left, kLinkSpacings * spacing, joins)) {
+  for (auto& members : regionsOf(scene.points, left, kLinkSpacings * spacing, joins)) {
     if (members.size() < std::max<std::size_t>(fewest, 3)) continue;
-    const PlaneFit plane = fitPlane(scene.points, members, m.p.viewpoint - scene.points[members.front()]);
-    // One point per voxel of side `spacing`: a plane crosses |nx| + |ny| + |nz| voxels per spacing^2.
-    const float area = static_cast<float>(members.size()) * spacing * spacing / plane.normal.cwiseAbs().sum();
-    if (area >= least_area && plane.rms <= m.p.plane_tolerance) flat.push_back({members, plane, area});
+    FlatRegion region = regionOf(m, std::move(members), spacing);
+    if (region.area >= least_area && region.plane.rms <= m.p.plane_tolerance) flat.push_back(std::move(region));
   }
   return flat;
+}
+
+/// Farthest-point seeds for splitRegion: each the member farthest from the region's centre and
+/// the seeds before it.
+std::vector<Vec3> farthestSeeds(const Points& points, const FlatRegion& region, int count) {
+  std::vector<Vec3> seeds;
+  std::vector<float> nearest(region.members.size(), INFINITY);
+  Vec3 last = region.plane.centre;
+  for (int c = 0; c < count; ++c) {
+    std::size_t far = 0;
+    for (std::size_t k = 0; k < region.members.size(); ++k) {
+      nearest[k] = std::min(nearest[k], (points[region.members[k]] - last).squaredNorm());
+      if (nearest[k] > nearest[far]) far = k;
+    }
+    last = points[region.members[far]];
+    seeds.push_back(last);
+  }
+  return seeds;
+}
+
+/// `region` split into `copies` pieces about as many centres in its plane (k-means, Lloyd 1982,
+/// from farthest-point seeds), each piece a region of its own. Copies of a flat part lying side
+/// by side at one height show faces that touch, and their points link into one region as large
+/// as several faces.
+std::vector<FlatRegion> splitRegion(const Matcher& m, const FlatRegion& region, int copies) {
+  const Points& points = m.scene.points;
+  std::vector<Vec3> centres = farthestSeeds(points, region, copies);
+  std::vector<int> label(region.members.size(), 0);
+  for (int step = 0; step < kSplitSteps; ++step) {
+    std::vector<Vec3> sum(copies, Vec3::Zero());
+    std::vector<int> count(copies, 0);
+    for (std::size_t k = 0; k < region.members.size(); ++k) {
+      const Vec3& q = points[region.members[k]];
+      label[k] = 0;
+      for (int c = 1; c < copies; ++c)
+        if ((q - centres[c]).squaredNorm() < (q - centres[label[k]]).squaredNorm()) label[k] = c;
+      sum[label[k]] += q;
+      ++count[label[k]];
+    }
+    for (int c = 0; c < copies; ++c)
+      if (count[c] > 0) centres[c] = sum[c] / static_cast<float>(count[c]);
+  }
+  std::vector<std::vector<std::uint32_t>> members(copies);
+  for (std::size_t k = 0; k < region.members.size(); ++k) members[label[k]].push_back(region.members[k]);
+  std::vector<FlatRegion> pieces;
+  const float spacing = 1.0f / std::sqrt(m.p.rho_sub);
+  for (auto& piece : members)
+    if (piece.size() >= 3) pieces.push_back(regionOf(m, std::move(piece), spacing));
+  return pieces;
+}
+
+/// The regions to try: each flat region, or where one is too large for any face but as large as
+/// 2 to kMostCopies copies of one, its pieces for that many copies (splitRegion). A region that
+/// one face could cover whole is not split: its halves would fit a smaller face.
+std::vector<FlatRegion> regionsToTry(const Matcher& m, std::vector<FlatRegion> regions, const std::vector<ModelFace>& faces) {
+  float largest = 0;
+  for (const ModelFace& face : faces) largest = std::max(largest, face.area);
+  std::vector<FlatRegion> all;
+  for (FlatRegion& region : regions) {
+    std::vector<int> splits;
+    if (region.area > kMostAreaShare * largest)
+      for (const ModelFace& face : faces)
+        if (const auto copies = static_cast<int>(std::lround(region.area / face.area)); copies >= 2 && copies <= kMostCopies)
+          splits.push_back(copies);
+    std::sort(splits.begin(), splits.end());
+    splits.erase(std::unique(splits.begin(), splits.end()), splits.end());
+    for (const int copies : splits)
+      for (FlatRegion& piece : splitRegion(m, region, copies)) all.push_back(std::move(piece));
+    if (splits.empty()) all.push_back(std::move(region));
+  }
+  return all;
 }
 
 /// Whether a region's spread along an axis is the face's, within a sampled region's error.
@@ -244,7 +348,7 @@ void addFaceDetections(const std::vector<ModelFace>& faces, const Matcher& m, co
   };
   float least = INFINITY;
   for (const ModelFace& f : faces) least = std::min(least, f.area);
-  const std::vector<FlatRegion> regions = flatRegions(m, state.removed, kLeastAreaShare * least);
+  const std::vector<FlatRegion> regions = regionsToTry(m, flatRegions(m, state.removed, kLeastAreaShare * least), faces);
   if (regions.empty()) return;
   const PreparedModel coarse = shareOf(kCoarsePoints), judged = shareOf(kJudgedPoints);
   for (const FlatRegion& region : regions) {
