@@ -133,11 +133,14 @@ float coveredArea(const Points& points, std::span<const std::uint32_t> members, 
   return static_cast<float>(distinct) * spacing * spacing;
 }
 
+/// The scene's sample spacing, mm: one point per voxel of this side (5.2.1).
+float sampleSpacing(const Matcher& m) { return 1.0f / std::sqrt(m.p.rho_sub); }
+
 /// The flat region of points[members]: its plane fit, turned towards the viewpoint, and the area it covers.
-FlatRegion regionOf(const Matcher& m, std::vector<std::uint32_t> members, float spacing) {
+FlatRegion regionOf(const Matcher& m, std::vector<std::uint32_t> members) {
   FlatRegion region;
   region.plane = fitPlane(m.scene.points, members, m.p.viewpoint - m.scene.points[members.front()]);
-  region.area = coveredArea(m.scene.points, members, region.plane, spacing);
+  region.area = coveredArea(m.scene.points, members, region.plane, sampleSpacing(m));
   region.members = std::move(members);
   return region;
 }
@@ -147,7 +150,7 @@ std::vector<FlatRegion> flatRegions(const Matcher& m, const std::vector<char>& r
   std::vector<std::uint32_t> left;  // the points no detection explains
   for (std::uint32_t i = 0; i < scene.points.size(); ++i)
     if (!removed[i]) left.push_back(i);
-  const float spacing = 1.0f / std::sqrt(m.p.rho_sub);
+  const float spacing = sampleSpacing(m);
   std::vector<FlatRegion> flat;
   const float min_cos = std::cos(kRegionDegrees * static_cast<float>(M_PI) / 180.0f);
   const auto joins = [&](std::uint32_t b, std::uint32_t a, std::uint32_t) { return scene.normals[b].dot(scene.normals[a]) >= min_cos; };
@@ -155,7 +158,7 @@ std::vector<FlatRegion> flatRegions(const Matcher& m, const std::vector<char>& r
   const auto fewest = static_cast<std::size_t>(least_area / (spacing * spacing));
   for (auto& members : regionsOf(scene.points, left, kLinkSpacings * spacing, joins)) {
     if (members.size() < std::max<std::size_t>(fewest, 3)) continue;
-    FlatRegion region = regionOf(m, std::move(members), spacing);
+    FlatRegion region = regionOf(m, std::move(members));
     if (region.area >= least_area && region.plane.rms <= m.p.plane_tolerance) flat.push_back(std::move(region));
   }
   return flat;
@@ -204,9 +207,8 @@ std::vector<FlatRegion> splitRegion(const Matcher& m, const FlatRegion& region, 
   std::vector<std::vector<std::uint32_t>> members(copies);
   for (std::size_t k = 0; k < region.members.size(); ++k) members[label[k]].push_back(region.members[k]);
   std::vector<FlatRegion> pieces;
-  const float spacing = 1.0f / std::sqrt(m.p.rho_sub);
   for (auto& piece : members)
-    if (piece.size() >= 3) pieces.push_back(regionOf(m, std::move(piece), spacing));
+    if (piece.size() >= 3) pieces.push_back(regionOf(m, std::move(piece)));
   return pieces;
 }
 
