@@ -118,6 +118,7 @@ class Reader {
   template <typename T>
   void getArray(T* out, std::size_t n, const char* what) {
     if (n > (end_ - pos_) / sizeof(T)) detail::fail(path_, fmt::format("database file is truncated (in {})", what));
+    if (n == 0) return;  // an empty vector's data() may be null, which memcpy must not get
     std::memcpy(static_cast<void*>(out), bytes_.data() + pos_, n * sizeof(T));
     pos_ += n * sizeof(T);
   }
@@ -308,6 +309,7 @@ ModelDatabase ModelDatabase::load(const std::string& path) {
   }
   if (db.keys_.size() != n_keys || n_points < 2 || n_points > 65535)
     detail::fail(path, "database header is inconsistent");
+  if (n_entries == 0) detail::fail(path, "database holds no point-pair features; retrain it");
   const std::size_t tables = std::size_t{n_points} * 24 + (std::size_t{n_keys} + 1) * 4;
   if (r.remaining() < tables || n_entries != (r.remaining() - tables) / 2 || (r.remaining() - tables) % 2 != 0)
     detail::fail(path, "database size does not match its header");

@@ -211,7 +211,7 @@ TEST(HostileInput, DatabaseWithAnImpossibleModelIsRefused) {
   const std::string good = test::readAll(path);
   const float nan = NAN, zeros[3] = {0, 0, 0};
   const float radius = db.model().sample_radius, tiny = 1e-40f;
-  const std::uint64_t entries = db.entryCount(), wrapped = entries | (std::uint64_t{1} << 63);
+  const std::uint64_t entries = db.entryCount(), wrapped = entries | (std::uint64_t{1} << 63), none = 0;
   const std::pair<std::string, std::string> crafted[] = {
       {recrafted(good, bytesOf(&radius, 1), bytesOf(&nan, 1)), "sample radius"},
       {recrafted(good, bytesOf(db.model().normals[0].data(), 3), bytesOf(zeros, 3)), "unit vector"},
@@ -220,6 +220,8 @@ TEST(HostileInput, DatabaseWithAnImpossibleModelIsRefused) {
       {recrafted(good, bytesOf(&db.keySpace().params().d_angle, 1), bytesOf(&tiny, 1)), "too fine"},
       // 2^63 more entries than stored: the size check must not wrap around to a match
       {recrafted(good, bytesOf(&entries, 1), bytesOf(&wrapped, 1)), "does not match its header"},
+      // no entries at all: nothing a detection could vote with
+      {recrafted(good, bytesOf(&entries, 1), bytesOf(&none, 1)), "no point-pair features"},
   };
   for (const auto& [bytes, why] : crafted) {
     test::writeAll(path, bytes);
