@@ -16,6 +16,7 @@
 #include <algorithm>
 #include <fmt/format.h>
 #include <numeric>
+#include <tbb/parallel_for.h>
 #include <tbb/parallel_invoke.h>
 
 namespace binpose {
@@ -28,6 +29,11 @@ constexpr float kLeastFaceShare = 0.25f;
 /// No scan in millimetres has a point this far from its origin (100 km): such a file is not a
 /// scan in mm, and the grids over it would overflow.
 constexpr float kFarthestCoordinate = 1e8f;
+/// Detections are polished (polishPose) on scans measured at least this noisy, mm (1 sigma): on
+/// the structured-light bins (1.3 mm) the model-to-scan ICP's median centroid error is 1.35 mm
+/// and polishing halves it; on the industrial ones (0.2 mm) it is 0.14 mm, and 0.06 mm on the
+/// clean ones, where polishing gains a few hundredths of a millimetre for a tenth more time.
+constexpr float kPolishNoise = 0.5f;
 
 /// Error naming the first point of `scan` beyond kFarthestCoordinate (non-finite ones are skipped).
 void checkCoordinates(const PointCloud& scan) {
@@ -51,6 +57,25 @@ std::vector<std::uint32_t> groupsToRetry(const std::vector<std::vector<std::uint
   for (std::uint32_t g = 0; g < groups.size(); ++g)
     if (largest_clique[g] >= p.retry_min_clique && largest_clique[g] < p.C_n && live(g) >= p.C_n) order.push_back(g);
   return order;
+}
+
+/// Each detection's pose polished (polishPose) against the full scan, with the normals of the
+/// voting points within one sample spacing; in parallel, each its own, so the result is the same
+/// whatever the threads.
+void polishAll(std::vector<Detection>& detections, const PreparedModel& model, const PointCloud& scan,
+               const PreparedScan& prepared) {
+  const StageSettings& p = prepared.params;
+  const PreparedScene& scene = prepared.scene;
+  const PointGrid oriented_grid(scene.points);
+  const PolishScan polish_scan{scan.points, *prepared.grid, scene.points, scene.normals, oriented_grid,
+                               1.0f / std::sqrt(p.rho_sub)};
+  PolishParams params;
+  params.max_distance = p.verify_tolerance;
+  params.viewpoint = p.viewpoint;
+  const PointGrid model_grid(model.points(), params.max_distance);
+  tbb::parallel_for(std::size_t{0}, detections.size(), [&](std::size_t i) {
+    detections[i].pose = polishPose(detections[i].pose, model, model_grid, polish_scan, params);
+  });
 }
 
 /// The sub-groups' wall time shared among voting, matching and refinement in proportion to
@@ -163,6 +188,11 @@ DetectionResult Detector::detect(const PointCloud& scan) const {
   if (p.max_instances > 0 && static_cast<int>(result.detections.size()) > p.max_instances && p.verify)
     result.detections.resize(static_cast<std::size_t>(p.max_instances));
   result.timing.match_ms += msSince(t_suppress);
+  if (p.refine && p.verify && !result.detections.empty() && prepared.noise.sigma >= kPolishNoise) {
+    const auto t_polish = Clock::now();
+    polishAll(result.detections, icp_model_, scan, prepared);
+    result.timing.refine_ms += msSince(t_polish);
+  }
   countStages(prepared, groups.size(), state, result);
   result.timing.total_ms = msSince(t0);
   return result;

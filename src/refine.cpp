@@ -13,6 +13,7 @@
 #include <optional>
 #include <fmt/format.h>
 #include <tbb/parallel_for.h>
+#include "icp_step.hpp"
 #include "refine_kernels.hpp"
 
 namespace binpose {
@@ -124,28 +125,6 @@ constexpr double kStalled = 0.01;
 /// Rounding allowance of the clearance test (mm): far above float rounding at a scan's
 /// coordinates, far below the clearances that let a search be skipped.
 constexpr float kClearanceMargin = 0.01f;
-
-/// Directions of the 6-dof step whose curvature is below this share of the largest one are
-/// left alone (degeneracy-aware ICP, Zhang et al. 2016): the spin of a body of revolution, the
-/// slide of a flat face. Solving for them fits noise, and the pose drifts there from step to step.
-constexpr double kWeakDirection = 1e-3;
-
-/// The least-squares step (omega, t) of A x = b, solved only along the constrained directions.
-/// Rotations are scaled by `length` (mm at the part's reach) so both halves compare in mm.
-Eigen::Matrix<double, 6, 1> constrainedStep(const Eigen::Matrix<double, 6, 6>& A, const Eigen::Matrix<double, 6, 1>& b,
-                                            double length) {
-  Eigen::Matrix<double, 6, 1> scale;
-  scale << Eigen::Vector3d::Constant(1.0 / length), Eigen::Vector3d::Ones();
-  const Eigen::Matrix<double, 6, 6> As = scale.asDiagonal() * A * scale.asDiagonal();
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> eig(As);
-  if (eig.info() != Eigen::Success) return Eigen::Matrix<double, 6, 1>::Constant(NAN);
-  const auto& values = eig.eigenvalues();  // increasing
-  const Eigen::Matrix<double, 6, 1> bs = scale.asDiagonal() * b;
-  Eigen::Matrix<double, 6, 1> y = Eigen::Matrix<double, 6, 1>::Zero();
-  for (int i = 0; i < 6; ++i)
-    if (values(i) > kWeakDirection * values(5)) y += eig.eigenvectors().col(i) * (eig.eigenvectors().col(i).dot(bs) / values(i));
-  return scale.asDiagonal() * y;
-}
 
 /// The scan points in front of the sensor (z > 0 in the image frame), each as its direction in
 /// the image (u, v: x / z and y / z) and its range, in the scan's order.
@@ -314,17 +293,6 @@ NormalEquations pairUp(const detail::OrientedLanes& lanes, std::size_t used, std
   return sum;
 }
 
-/// The rigid step p -> R (p - c) + c + t of the solution x = (omega, t).
-Pose stepAbout(const Vec3& c, const Eigen::Matrix<double, 6, 1>& x) {
-  const Eigen::Vector3d omega = x.head<3>();
-  Eigen::Matrix3f R = Eigen::Matrix3f::Identity();
-  if (omega.norm() > 0) R = Eigen::AngleAxisd(omega.norm(), omega.normalized()).toRotationMatrix().cast<float>();
-  Pose step = Pose::Identity();
-  step.linear() = R;
-  step.translation() = c - R * c + x.tail<3>().cast<float>();
-  return step;
-}
-
 }  // namespace
 
 Pose refinePose(const Pose& pose, const PreparedModel& model, const Points& scan, const PointGrid& scan_grid,
@@ -349,9 +317,9 @@ Pose refinePose(const Pose& pose, const PreparedModel& model, const Points& scan
       stride = 1;  // too few pairs among the coarse points: on with all of them
       continue;
     }
-    const Eigen::Matrix<double, 6, 1> x = constrainedStep(sum.A, sum.b, length);
+    const Eigen::Matrix<double, 6, 1> x = detail::constrainedStep(sum.A, sum.b, length);
     if (!x.allFinite()) break;
-    current = stepAbout(c, x) * current;
+    current = detail::stepAbout(c, x) * current;
     if (params.path != nullptr) params.path->push_back(current);
     if (params.stop && params.stop(current)) break;
     gate = std::max(params.min_distance, gate * 0.7f);

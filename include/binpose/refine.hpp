@@ -75,6 +75,36 @@ Pose refinePose(const Pose& pose, const PreparedModel& model, const Points& scan
 Pose refinePose(const Pose& pose, const Points& model_points, const Points& model_normals, const Points& scan,
                 const PointGrid& scan_grid, const IcpParams& params);
 
+/// The final refinement of a detection (src/polish.cpp).
+struct PolishParams {
+  int iterations = 5;         ///< at most this many steps (fewer once converged)
+  float max_distance = 1.0f;  ///< pairs farther apart are left out, mm (the verification tolerance)
+  Vec3 viewpoint = Vec3::Zero();
+};
+
+/// The scan as polishPose pairs it: every point, and oriented points (the scan's voting points
+/// with their normals), each with a grid of them. A scan point takes the normal of the nearest
+/// oriented point within `oriented_reach` mm, and has none (pairs with nothing) without one: the
+/// voting points leave out the bin's floor and walls.
+struct PolishScan {
+  const Points& points;
+  const PointGrid& grid;
+  const Points& oriented_points;
+  const Points& oriented_normals;
+  const PointGrid& oriented_grid;
+  float oriented_reach;
+};
+
+/// Point-to-plane ICP from a pose already close, with pairs both ways: each sensor-facing model
+/// point with its nearest scan point, and each scan point near the part with its nearest
+/// sensor-facing model point; a pair counts only where the scan's normal there and the model's
+/// agree within 60 degrees (normal compatibility, Rusinkiewicz & Levoy 2001). On a noisy scan,
+/// model-to-scan pairs alone (refinePose) settle a pose about a noise sigma away from the truth:
+/// each model point picks the noisy scan point nearest to it, and at the part's outline the
+/// floor or a neighbour beside it (docs/design.md). `model_grid`: a grid of model.points().
+Pose polishPose(const Pose& pose, const PreparedModel& model, const PointGrid& model_grid, const PolishScan& scan,
+                const PolishParams& params);
+
 /// What the scan says about a posed model's sensor-facing points.
 struct Evidence {
   int facing = 0;      ///< model points facing the sensor and not hidden by the part itself

@@ -1,0 +1,107 @@
+// The final refinement of a detection: point-to-plane ICP whose pairs go both ways, model to
+// scan and scan to model, and agree in their normals.
+#include <binpose/refine.hpp>
+
+#include "icp_step.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+namespace binpose {
+namespace {
+
+/// A pair counts only where its scan and model normals make less than 60 degrees (Rusinkiewicz &
+/// Levoy 2001): a model point on a part's side paired with the floor beside it pulls the part
+/// sideways by its distance from the floor's points.
+constexpr float kCompatibleCos = 0.5f;
+/// The scan points taken near the part lie within this many pair distances of its surface at
+/// the start, so that the pose may move by a pair distance while they stay in reach.
+constexpr float kNearReach = 2.0f;
+/// Polishing stops once a step moves no model point more than this, mm.
+constexpr double kConverged = 1e-3;
+
+/// The scan points near the posed model (within kNearReach pair distances of a model point) that
+/// have a normal: their indices into the scan, ascending, and their normals.
+struct NearScan {
+  std::vector<std::uint32_t> index;
+  Points normals;
+  /// The normal of scan point i, or null when it is not near or has none.
+  [[nodiscard]] const Vec3* normalOf(std::uint32_t i) const {
+    const auto at = std::lower_bound(index.begin(), index.end(), i);
+    return at != index.end() && *at == i ? &normals[static_cast<std::size_t>(at - index.begin())] : nullptr;
+  }
+};
+
+NearScan nearScan(const Pose& pose, const PreparedModel& model, const PointGrid& model_grid, const PolishScan& scan, float gate) {
+  const float reach = kNearReach * gate;
+  std::vector<std::uint32_t> around;
+  scan.grid.within(pose * model.centre(), static_cast<float>(model.reach()) + reach, around);
+  std::sort(around.begin(), around.end());
+  const Pose inverse = pose.inverse();
+  NearScan near;
+  for (std::uint32_t i : around) {
+    const Vec3& q = scan.points[i];
+    std::uint32_t m, o;
+    float d2;
+    if (!model_grid.nearest(inverse * q, reach, m, d2) || !scan.oriented_grid.nearest(q, scan.oriented_reach, o, d2)) continue;
+    near.index.push_back(i);
+    near.normals.push_back(scan.oriented_normals[o]);
+  }
+  return near;
+}
+
+/// One point-to-plane pair about centre c: model point p with normal n, scan point q.
+void addPair(const Vec3& p, const Vec3& n, const Vec3& q, const Vec3& c, Eigen::Matrix<double, 6, 6>& A,
+             Eigen::Matrix<double, 6, 1>& b) {
+  Eigen::Matrix<double, 6, 1> J;
+  J << (p - c).cross(n).cast<double>(), n.cast<double>();
+  A += J * J.transpose();
+  b += J * static_cast<double>(n.dot(q - p));
+}
+
+}  // namespace
+
+Pose polishPose(const Pose& pose, const PreparedModel& model, const PointGrid& model_grid, const PolishScan& scan,
+                const PolishParams& params) {
+  const Points& mp = model.points();
+  const Points& mn = model.normals();
+  const float gate = params.max_distance;
+  if (mp.size() < 3 || scan.points.empty() || !(gate > 0)) return pose;
+  const NearScan near = nearScan(pose, model, model_grid, scan, gate);
+  const auto faces = [&](const Vec3& p, const Vec3& n) { return n.dot(params.viewpoint - p) > 0; };
+  Pose current = pose;
+  for (int it = 0; it < params.iterations; ++it) {
+    const Vec3 c = current * model.centre();
+    const Pose inverse = current.inverse();
+    Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
+    Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
+    int pairs = 0;
+    std::uint32_t j;
+    float d2;
+    for (std::size_t i = 0; i < mp.size(); ++i) {  // model to scan
+      const Vec3 p = current * mp[i], n = current.linear() * mn[i];
+      if (!faces(p, n) || !scan.grid.nearest(p, gate, j, d2)) continue;
+      const Vec3* normal = near.normalOf(j);
+      if (normal == nullptr || n.dot(*normal) < kCompatibleCos) continue;
+      addPair(p, n, scan.points[j], c, A, b);
+      ++pairs;
+    }
+    for (std::size_t k = 0; k < near.index.size(); ++k) {  // scan to model
+      const Vec3& q = scan.points[near.index[k]];
+      if (!model_grid.nearest(inverse * q, gate, j, d2)) continue;
+      const Vec3 p = current * mp[j], n = current.linear() * mn[j];
+      if (!faces(p, n) || n.dot(near.normals[k]) < kCompatibleCos) continue;
+      addPair(p, n, q, c, A, b);
+      ++pairs;
+    }
+    if (pairs < 12) break;
+    const Eigen::Matrix<double, 6, 1> x = detail::constrainedStep(A, b, model.reach());
+    if (!x.allFinite()) break;
+    current = detail::stepAbout(c, x) * current;
+    if (x.head<3>().norm() * model.reach() + x.tail<3>().norm() < kConverged) break;
+  }
+  return current;
+}
+
+}  // namespace binpose
