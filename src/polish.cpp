@@ -51,6 +51,23 @@ NearScan nearScan(const Pose& pose, const PreparedModel& model, const PointGrid&
   return near;
 }
 
+constexpr std::uint32_t kUnpaired = ~std::uint32_t{0};
+
+/// The nearest point of `grid` to q within `gate`, as PointGrid::nearest gives it. `pair` holds
+/// q's pair of the step before (kUnpaired: none) and gets this one: the pose moves little from
+/// step to step, so the nearest lies no farther than the old pair, and a search of that small
+/// box finds it.
+bool nearestAgain(const PointGrid& grid, const Points& points, const Vec3& q, float gate, std::uint32_t& pair) {
+  float d2;
+  if (pair != kUnpaired) {
+    const float old_d2 = (points[pair] - q).squaredNorm();
+    if (old_d2 <= gate * gate) return grid.nearestWithin(q, old_d2, pair, d2);
+  }
+  if (grid.nearest(q, gate, pair, d2)) return true;
+  pair = kUnpaired;
+  return false;
+}
+
 /// One point-to-plane pair about centre c: model point p with normal n, scan point q.
 void addPair(const Vec3& p, const Vec3& n, const Vec3& q, const Vec3& c, Eigen::Matrix<double, 6, 6>& A,
              Eigen::Matrix<double, 6, 1>& b) {
@@ -70,6 +87,7 @@ Pose polishPose(const Pose& pose, const PreparedModel& model, const PointGrid& m
   if (mp.size() < 3 || scan.points.empty() || !(gate > 0)) return pose;
   const NearScan near = nearScan(pose, model, model_grid, scan, gate);
   const auto faces = [&](const Vec3& p, const Vec3& n) { return n.dot(params.viewpoint - p) > 0; };
+  std::vector<std::uint32_t> to_scan(mp.size(), kUnpaired), to_model(near.index.size(), kUnpaired);
   Pose current = pose;
   for (int it = 0; it < params.iterations; ++it) {
     const Vec3 c = current * model.centre();
@@ -77,20 +95,18 @@ Pose polishPose(const Pose& pose, const PreparedModel& model, const PointGrid& m
     Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
     Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
     int pairs = 0;
-    std::uint32_t j;
-    float d2;
     for (std::size_t i = 0; i < mp.size(); ++i) {  // model to scan
       const Vec3 p = current * mp[i], n = current.linear() * mn[i];
-      if (!faces(p, n) || !scan.grid.nearest(p, gate, j, d2)) continue;
-      const Vec3* normal = near.normalOf(j);
+      if (!faces(p, n) || !nearestAgain(scan.grid, scan.points, p, gate, to_scan[i])) continue;
+      const Vec3* normal = near.normalOf(to_scan[i]);
       if (normal == nullptr || n.dot(*normal) < kCompatibleCos) continue;
-      addPair(p, n, scan.points[j], c, A, b);
+      addPair(p, n, scan.points[to_scan[i]], c, A, b);
       ++pairs;
     }
     for (std::size_t k = 0; k < near.index.size(); ++k) {  // scan to model
       const Vec3& q = scan.points[near.index[k]];
-      if (!model_grid.nearest(inverse * q, gate, j, d2)) continue;
-      const Vec3 p = current * mp[j], n = current.linear() * mn[j];
+      if (!nearestAgain(model_grid, mp, inverse * q, gate, to_model[k])) continue;
+      const Vec3 p = current * mp[to_model[k]], n = current.linear() * mn[to_model[k]];
       if (!faces(p, n) || n.dot(near.normals[k]) < kCompatibleCos) continue;
       addPair(p, n, q, c, A, b);
       ++pairs;
