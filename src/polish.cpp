@@ -18,6 +18,11 @@ constexpr float kCompatibleCos = 0.5f;
 /// The scan points taken near the part lie within this many pair distances of its surface at
 /// the start, so that the pose may move by a pair distance while they stay in reach.
 constexpr float kNearReach = 2.0f;
+/// Scan points paired to the model at most: where more lie near it (a large part in a dense scan:
+/// 14 000 on PCL's milk carton), every k-th of them, so that a detection's polish costs a few
+/// milliseconds at most. The structured-light bins' parts have 1 300-4 300, and every one of them
+/// counts there: half of them leave a median centroid error of 1.02 mm instead of 0.89.
+constexpr std::size_t kMostScanPoints = 4000;
 /// Polishing stops once a step moves no model point more than this, mm.
 constexpr double kConverged = 1e-3;
 
@@ -47,6 +52,14 @@ NearScan nearScan(const Pose& pose, const PreparedModel& model, const PointGrid&
     if (!model_grid.nearest(inverse * q, reach, m, d2) || !scan.oriented_grid.nearest(q, scan.oriented_reach, o, d2)) continue;
     near.index.push_back(i);
     near.normals.push_back(scan.oriented_normals[o]);
+  }
+  if (const std::size_t n = near.index.size(); n > kMostScanPoints) {  // an even share, in order
+    for (std::size_t k = 0; k < kMostScanPoints; ++k) {
+      near.index[k] = near.index[k * n / kMostScanPoints];
+      near.normals[k] = near.normals[k * n / kMostScanPoints];
+    }
+    near.index.resize(kMostScanPoints);
+    near.normals.resize(kMostScanPoints);
   }
   return near;
 }
