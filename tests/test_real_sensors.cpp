@@ -211,3 +211,33 @@ TEST(RealSensors, FaceHypothesesFindGearsLyingFlatOnIndustrialScan) {
   EXPECT_GE(right_with, right_without + 4);  // 12 -> 16
   EXPECT_LE(wrong_with, wrong_without);
 }
+
+// The bench's ipd8-16-sl bin with --seed-offset 1000 (seed 1105): six gears lie flat, face to the
+// structured-light sensor, more than half visible. Laid on their flat regions, the gear's two
+// sides are supported within a factor of two of each other (the scan's noise hides the hub's
+// step); the better side must still be taken, or the wrong clique poses (scores 0.2-0.35) stay.
+// Found the right way up (MSSD under 10 mm): 5 of the 6 (3 when the better side had to be
+// supported twice as well).
+TEST(RealSensors, GearsLyingFlatOnStructuredLightAreFoundTheRightWayUp) {
+  REQUIRE_DATA("ipd_parts/models/obj_000008.ply");
+  SensorParams sensor;
+  sensor.model = sensorModel(SensorKind::StructuredLight);
+  sensor.distance = 800.0f;
+  const IpdBin b = ipdBin("obj_000008.ply", 1105, sensor);
+  const EvalModel eval = makeEvalModel(b.mesh, readSymmetries(test::dataPath("ipd_parts/models/models_info.json"), "8"));
+  const DetectionResult result = Detector(b.db, scaledToModel(defaultPreset(), b.model.diameter)).detect(b.bin.cloud);
+  const float face_on = std::cos(10.0f * static_cast<float>(M_PI) / 180.0f);
+  int flat = 0, right_way_up = 0;
+  for (const SimulatedInstance& copy : b.bin.instances) {
+    if (copy.visib_fract <= 0.5f || std::abs(copy.pose.linear().col(1).z()) < face_on) continue;  // the gear's axis: y
+    ++flat;
+    float best = INFINITY;
+    for (const Detection& d : result.detections)
+      if (test::addSTo(d.pose, copy.pose, eval) < 0.1f * eval.diameter)
+        best = std::min(best, poseErrors(d.pose, copy.pose, eval).mssd_mm);
+    right_way_up += best < 10.0f ? 1 : 0;
+  }
+  std::printf("%d of %d gears lying flat found the right way up\n", right_way_up, flat);
+  ASSERT_EQ(flat, 6);
+  EXPECT_GE(right_way_up, 5);
+}
