@@ -1,6 +1,6 @@
 #pragma once
-// Internal: one step of point-to-plane ICP (refine.cpp, polish.cpp): the linearised 6-dof
-// least-squares solve and the rigid motion it gives.
+// Internal: one step of point-to-plane ICP (refine.cpp, polish.cpp): a pair's share of the
+// linearised 6-dof least squares, its solve, and the rigid motion it gives.
 #include <binpose/pose.hpp>
 
 #include <Eigen/Eigenvalues>
@@ -8,6 +8,20 @@
 #include <cmath>
 
 namespace binpose::detail {
+
+/// ICP stops once a step moves no model point more than this, mm.
+constexpr double kConverged = 1e-3;
+
+/// Adds pair (model point p with normal n, scan point q) to the normal equations A x = b of a step
+/// about centre c: the residual n.(q - p) against the step (omega, t), n.(omega x (p - c) + t).
+inline void addPointToPlane(const Vec3& p, const Vec3& n, const Vec3& q, const Vec3& c, Eigen::Matrix<double, 6, 6>& A,
+                            Eigen::Matrix<double, 6, 1>& b) {
+  Eigen::Matrix<double, 6, 1> J;
+  J << (p - c).cross(n).cast<double>(), n.cast<double>();
+  const double r = n.dot(q - p);
+  A += J * J.transpose();
+  b += J * r;
+}
 
 /// Directions of the 6-dof step whose curvature is below this share of the largest one are
 /// left alone (degeneracy-aware ICP, Zhang et al. 2016): the spin of a body of revolution, the
@@ -29,6 +43,12 @@ inline Eigen::Matrix<double, 6, 1> constrainedStep(const Eigen::Matrix<double, 6
   for (int i = 0; i < 6; ++i)
     if (values(i) > kWeakDirection * values(5)) y += eig.eigenvectors().col(i) * (eig.eigenvectors().col(i).dot(bs) / values(i));
   return scale.asDiagonal() * y;
+}
+
+/// The most a step x = (omega, t) moves a model point, mm: its rotation at the part's reach
+/// `length` plus its translation.
+inline double stepMotion(const Eigen::Matrix<double, 6, 1>& x, double length) {
+  return x.head<3>().norm() * length + x.tail<3>().norm();
 }
 
 /// The rigid step p -> R (p - c) + c + t of the solution x = (omega, t).

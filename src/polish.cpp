@@ -23,8 +23,6 @@ constexpr float kNearReach = 2.0f;
 /// milliseconds at most. The structured-light bins' parts have 1 300-4 300, and every one of them
 /// counts there: half of them leave a median centroid error of 1.02 mm instead of 0.89.
 constexpr std::size_t kMostScanPoints = 4000;
-/// Polishing stops once a step moves no model point more than this, mm.
-constexpr double kConverged = 1e-3;
 
 /// The scan points near the posed model (within kNearReach pair distances of a model point) that
 /// have a normal: their indices into the scan, ascending, and their normals.
@@ -81,15 +79,6 @@ bool nearestAgain(const PointGrid& grid, const Points& points, const Vec3& q, fl
   return false;
 }
 
-/// One point-to-plane pair about centre c: model point p with normal n, scan point q.
-void addPair(const Vec3& p, const Vec3& n, const Vec3& q, const Vec3& c, Eigen::Matrix<double, 6, 6>& A,
-             Eigen::Matrix<double, 6, 1>& b) {
-  Eigen::Matrix<double, 6, 1> J;
-  J << (p - c).cross(n).cast<double>(), n.cast<double>();
-  A += J * J.transpose();
-  b += J * static_cast<double>(n.dot(q - p));
-}
-
 }  // namespace
 
 Pose polishPose(const Pose& pose, const PreparedModel& model, const PointGrid& model_grid, const PolishScan& scan,
@@ -113,7 +102,7 @@ Pose polishPose(const Pose& pose, const PreparedModel& model, const PointGrid& m
       if (!faces(p, n) || !nearestAgain(scan.grid, scan.points, p, gate, to_scan[i])) continue;
       const Vec3* normal = near.normalOf(to_scan[i]);
       if (normal == nullptr || n.dot(*normal) < kCompatibleCos) continue;
-      addPair(p, n, scan.points[to_scan[i]], c, A, b);
+      detail::addPointToPlane(p, n, scan.points[to_scan[i]], c, A, b);
       ++pairs;
     }
     for (std::size_t k = 0; k < near.index.size(); ++k) {  // scan to model
@@ -121,14 +110,14 @@ Pose polishPose(const Pose& pose, const PreparedModel& model, const PointGrid& m
       if (!nearestAgain(model_grid, mp, inverse * q, gate, to_model[k])) continue;
       const Vec3 p = current * mp[to_model[k]], n = current.linear() * mn[to_model[k]];
       if (!faces(p, n) || n.dot(near.normals[k]) < kCompatibleCos) continue;
-      addPair(p, n, q, c, A, b);
+      detail::addPointToPlane(p, n, q, c, A, b);
       ++pairs;
     }
     if (pairs < 12) break;
     const Eigen::Matrix<double, 6, 1> x = detail::constrainedStep(A, b, model.reach());
     if (!x.allFinite()) break;
     current = detail::stepAbout(c, x) * current;
-    if (x.head<3>().norm() * model.reach() + x.tail<3>().norm() < kConverged) break;
+    if (detail::stepMotion(x, model.reach()) < detail::kConverged) break;
   }
   return current;
 }

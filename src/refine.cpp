@@ -104,9 +104,6 @@ unsigned poseFour(const detail::OrientedLanes& lanes, std::size_t s, const Pose&
 
 constexpr std::uint32_t kUnpaired = ~std::uint32_t{0};
 
-/// ICP stops once a step moves no model point more than this, mm.
-constexpr double kConverged = 1e-3;
-
 /// Coarse to fine: ICP first steps with every kCoarseStride-th model point, then with all of
 /// them once a coarse step moves no point more than kCoarseConverged mm, or no less than the
 /// step before (the few points' pairs flip back and forth), or after kCoarseSteps steps (or
@@ -275,12 +272,7 @@ NormalEquations pairUp(const detail::OrientedLanes& lanes, std::size_t used, std
         state.missed_at[i] = p;
         continue;
       }
-      // residual n.(q - p) against the step (omega, t): n.(omega x (p - c) + t)
-      Eigen::Matrix<double, 6, 1> J;
-      J << (p - c).cross(n).cast<double>(), n.cast<double>();
-      const double r = n.dot(scan[j] - p);
-      e.A += J * J.transpose();
-      e.b += J * r;
+      detail::addPointToPlane(p, n, scan[j], c, e.A, e.b);
       ++e.pairs;
     }
   });
@@ -326,7 +318,7 @@ Pose refinePose(const Pose& pose, const PreparedModel& model, const Points& scan
     // Converged when no model point moves more than kConverged (the step's rotation at the
     // part's reach plus its translation), or stalled (kStalled); the coarse points hand over
     // at kCoarseConverged.
-    const double moved = x.head<3>().norm() * length + x.tail<3>().norm();
+    const double moved = detail::stepMotion(x, length);
     if (stride > 1) {
       if (moved < kCoarseConverged || moved >= last_moved || it + 1 >= kCoarseSteps) {
         stride = 1;
@@ -336,7 +328,7 @@ Pose refinePose(const Pose& pose, const PreparedModel& model, const Points& scan
       }
       continue;
     }
-    if (moved < kConverged || (moved < kStalled && moved >= last_moved)) break;
+    if (moved < detail::kConverged || (moved < kStalled && moved >= last_moved)) break;
     last_moved = moved;
   }
   return current;

@@ -20,6 +20,14 @@ namespace {
 
 ModelDatabase databaseOf(const OrientedModel& model) { return ModelDatabase::build(model, defaultQuantization(model.diameter)); }
 
+/// The structured-light sensor model 800 mm above the bin's floor, as the bench's -sl bins see it.
+SensorParams structuredLightAt800() {
+  SensorParams sensor;
+  sensor.model = sensorModel(SensorKind::StructuredLight);
+  sensor.distance = 800.0f;
+  return sensor;
+}
+
 }  // namespace
 
 // IPD obj 8 (a thin bracket, 2-fold symmetric) in 12 copies, seen by the structured-light model
@@ -32,10 +40,7 @@ TEST(RealSensors, StructuredLightBinWithoutFalseDetections) {
   const Mesh mesh = readMesh(test::dataPath("ipd_parts/models/obj_000008.ply"));
   const OrientedModel model = prepareModel(mesh, ModelParams{});
   const ModelDatabase db = databaseOf(model);
-  SensorParams sensor;
-  sensor.distance = 800.0f;
-  sensor.model = sensorModel(SensorKind::StructuredLight);
-  const SimulatedScene bin = renderBin(mesh, test::gridOfCopies(model, 12, 31), BinParams{}, sensor, 31);
+  const SimulatedScene bin = renderBin(mesh, test::gridOfCopies(model, 12, 31), BinParams{}, structuredLightAt800(), 31);
   const EvalModel eval = makeEvalModel(mesh, readSymmetries(test::dataPath("ipd_parts/models/models_info.json"), "8"));
   const DetectionResult result = Detector(db, scaledToModel(defaultPreset(), model.diameter)).detect(bin.cloud);
   EXPECT_GT(result.noise_mm, 0.4f);  // the sensor's noise is seen
@@ -144,8 +149,7 @@ TEST(RealSensors, AlternativeCliquesFindMoreCapsOnStructuredLight) {
   const ModelDatabase db = databaseOf(model);
   SimulationParams sp;
   sp.seed = 3101;
-  sp.sensor.model = sensorModel(SensorKind::StructuredLight);
-  sp.sensor.distance = 800.0f;
+  sp.sensor = structuredLightAt800();
   const SimulatedScene bin = simulateBin(mesh, sp);
   Symmetries about_axis;  // the cap is a body of revolution about its z axis
   about_axis.continuous.push_back({Vec3::UnitZ(), Vec3::Zero()});
@@ -167,10 +171,7 @@ TEST(RealSensors, AlternativeCliquesFindMoreCapsOnStructuredLight) {
 // places two where none is; three, compared from 0.3, find more and place none wrong.
 TEST(RealSensors, ThreeOtherCliquesFindMoreBracketsOnStructuredLight) {
   REQUIRE_DATA("ipd_parts/models/obj_000001.ply");
-  SensorParams sensor;
-  sensor.model = sensorModel(SensorKind::StructuredLight);
-  sensor.distance = 800.0f;
-  const IpdBin b = ipdBin("obj_000001.ply", 107, sensor);
+  const IpdBin b = ipdBin("obj_000001.ply", 107, structuredLightAt800());
   const EvalModel eval = makeEvalModel(b.mesh, Symmetries{});
   const StageSettings three = stageSettings(scaledToModel(defaultPreset(), b.model.diameter), b.model.diameter);
   StageSettings one = three;
@@ -220,10 +221,7 @@ TEST(RealSensors, FaceHypothesesFindGearsLyingFlatOnIndustrialScan) {
 // supported twice as well).
 TEST(RealSensors, GearsLyingFlatOnStructuredLightAreFoundTheRightWayUp) {
   REQUIRE_DATA("ipd_parts/models/obj_000008.ply");
-  SensorParams sensor;
-  sensor.model = sensorModel(SensorKind::StructuredLight);
-  sensor.distance = 800.0f;
-  const IpdBin b = ipdBin("obj_000008.ply", 1105, sensor);
+  const IpdBin b = ipdBin("obj_000008.ply", 1105, structuredLightAt800());
   const EvalModel eval = makeEvalModel(b.mesh, readSymmetries(test::dataPath("ipd_parts/models/models_info.json"), "8"));
   const DetectionResult result = Detector(b.db, scaledToModel(defaultPreset(), b.model.diameter)).detect(b.bin.cloud);
   const float face_on = std::cos(10.0f * static_cast<float>(M_PI) / 180.0f);
