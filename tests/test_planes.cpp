@@ -287,3 +287,29 @@ TEST(Planes, APairIsOnePatchExactlyWhenLinked) {
   EXPECT_GT(linked, 5000);
   EXPECT_GT(apart, 5000);
 }
+
+// A wide floor under a Kinect-class sensor's noise (2 mm along the line of sight), bent by 3 mm
+// from its middle to its edges as such a sensor's depth is, whose normals are as rough as such a
+// scan's (each tilted by up to 20 degrees): a hypothesis drawn from one point's normal cuts a
+// tilted band out of it, and only refitting the band's plane until its inliers stop growing
+// takes the whole floor as one plane, level.
+TEST(Planes, ANoisyFloorWithRoughNormalsIsFoundWholeAndLevel) {
+  Rng rng(5);
+  Points points, normals;
+  for (float x = -300; x <= 300; x += kSpacing)
+    for (float y = -300; y <= 300; y += kSpacing) {
+      points.push_back(Vec3(x, y, 900 + 3.0f * (x * x + y * y) / (2 * 300 * 300) + 2.0f * test::gaussian(rng)));
+      const float tilt = 0.35f * static_cast<float>(rng.uniform()), turn = 6.2831853f * static_cast<float>(rng.uniform());
+      normals.push_back(Vec3(std::sin(tilt) * std::cos(turn), std::sin(tilt) * std::sin(turn), -std::cos(tilt)));
+    }
+  PlaneParams params;
+  params.tolerance = 2.3f * 2.0f;  // the noise-adapted plane tolerance (noise.cpp)
+  params.max_angle = 0.45f;
+  std::vector<Plane> found;
+  const std::vector<char> flat = largePlanes(points, normals, 1.0f / (kSpacing * kSpacing), params, &found);
+  ASSERT_EQ(found.size(), 1u);
+  EXPECT_GT(std::abs(found[0].normal.z()), std::cos(0.5f * 3.14159265f / 180.0f));  // within half a degree of level
+  EXPECT_NEAR(std::abs(found[0].d), 901.0f, 1.0f);
+  const auto on = std::count(flat.begin(), flat.end(), 1);
+  EXPECT_GT(on, static_cast<long>(0.9 * static_cast<double>(points.size())));
+}
