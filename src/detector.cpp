@@ -3,6 +3,7 @@
 
 #include "duplicates.hpp"
 #include "face_hypotheses.hpp"
+#include "flying_pixels.hpp"
 #include "group_schedule.hpp"
 #include "local_votes.hpp"
 #include "model_shape.hpp"
@@ -144,12 +145,15 @@ const CyclicSymmetry* Detector::cyclicSymmetry() const { return symmetry_->cycli
 const DetectionParams& Detector::params() const { return *settings_; }
 Detector::Detector(Detector&&) noexcept = default;
 
-DetectionResult Detector::detect(const PointCloud& scan) const {
+DetectionResult Detector::detect(const PointCloud& input) const {
   const auto t0 = Clock::now();
   DetectionResult result;
-  result.scene_points = scan.size();
-  if (scan.empty()) return result;
-  checkCoordinates(scan);
+  result.scene_points = input.size();
+  if (input.empty()) return result;
+  checkCoordinates(input);
+  const std::optional<PointCloud> cleaned = withoutFlyingPixels(input, *settings_);  // points between two surfaces out
+  const PointCloud& scan = cleaned ? *cleaned : input;
+  result.flying_points = input.size() - scan.size();
   PreparedScan prepared;  // 5.2.1-5.2.2: sub-sampled, oriented, the bin's planes apart; the noise measured
   prepareScan(scan, *settings_, prepared);
   const StageSettings& p = prepared.params;  // adapted to the scan's noise

@@ -14,7 +14,7 @@ namespace {
 StageSettings thesisStages() {
   StageSettings s;
   s.subsampling = Subsampling::Random;
-  s.adapt_to_noise = false;  // and so no far_noise either
+  s.adapt_to_noise = false;  // and so no far_noise or flying pixels either
   s.remove_planes = false;
   s.candidates_per_point = 1;
   s.candidate_spacing = 0.0f;

@@ -21,6 +21,8 @@ struct StageSettings : DetectionParams {
   /// mm; 1.2 mm for the 60 mm part: 2 % of its diameter) and three times noisier than nearer
   /// (farNoisyRange, noise.hpp): a room's far walls behind the bin (0: none left out).
   float far_noise = 1.2f;
+  /// ... and drop a depth image's flying pixels, which lie between two surfaces (flying_pixels.hpp).
+  bool remove_flying_pixels = true;
   /// Take the bin's floor and walls (connected flat patches of at least plane_min_area) out of
   /// the voting points (planes.hpp); they stay in the scan for ICP and verification.
   bool remove_planes = true;

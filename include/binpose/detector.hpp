@@ -32,6 +32,7 @@ struct DetectionResult {
   std::vector<Detection> detections;  ///< best first (by score when verifying, else in order found)
   DetectionTiming timing;
   std::size_t scene_points = 0;    ///< points of the scan
+  std::size_t flying_points = 0;   ///< ... of them flying pixels between two surfaces, dropped (a depth image's)
   std::size_t sampled_points = 0;  ///< oriented points after sub-sampling
   float noise_mm = 0;              ///< the scan's noise, 1 sigma, measured on it (plane-fit residuals)
   int k_normals = 0;               ///< the normals' neighbours used (k_normals, raised for a noisy scan)
