@@ -5,8 +5,8 @@
 //                     [--repeats 5] [--inputs a,b] [--methods a,b] [--seed-offset N]
 //
 // Inputs: seeded simulated bins (16 and 32 copies of the built-in cap, IPD obj 0 and obj 8, seen by
-// the ideal sensor; 16 of the cap, IPD obj 0, 8 and 1 seen by the structured-light and industrial
-// sensor models, -sl and -ind) and
+// the ideal sensor; 16 of the cap, IPD obj 0, 8 and 1 seen by the structured-light, industrial and
+// time-of-flight sensor models, -sl, -ind and -tof) and
 // the real scans UWA rs1 (parasaurolophus) and PCL milk (carton). Each (input, method) runs in a
 // child process (this program re-executed with --run) so that its peak memory is its own.
 // Timings: training once; detection the median of --repeats runs, file reading excluded,
@@ -67,6 +67,8 @@ struct InputSpec {
 constexpr float kStructuredLightDistance = 800;
 /// An industrial sensor 1 m above the floor at 1280 x 960 px (about 0.9 mm a pixel there).
 constexpr float kIndustrialDistance = 1000;
+/// A time-of-flight sensor (Kinect v2 class) 800 mm above the floor, as the structured-light one.
+constexpr float kTimeOfFlightDistance = 800;
 
 const std::vector<InputSpec>& inputSpecs() {
   static const std::vector<InputSpec> specs = {
@@ -84,6 +86,10 @@ const std::vector<InputSpec>& inputSpecs() {
       {"ipd0-16-ind", "ipd_parts/models/obj_000000.ply", "0", 16, 103, SensorKind::Industrial, kIndustrialDistance, 1280, 960, 1100},
       {"ipd8-16-ind", "ipd_parts/models/obj_000008.ply", "8", 16, 105, SensorKind::Industrial, kIndustrialDistance, 1280, 960, 1100},
       {"ipd1-16-ind", "ipd_parts/models/obj_000001.ply", "1", 16, 107, SensorKind::Industrial, kIndustrialDistance, 1280, 960, 1100},
+      {"cap-16-tof", "builtin:cap", "", 16, 101, SensorKind::TimeOfFlight, kTimeOfFlightDistance},
+      {"ipd0-16-tof", "ipd_parts/models/obj_000000.ply", "0", 16, 103, SensorKind::TimeOfFlight, kTimeOfFlightDistance},
+      {"ipd8-16-tof", "ipd_parts/models/obj_000008.ply", "8", 16, 105, SensorKind::TimeOfFlight, kTimeOfFlightDistance},
+      {"ipd1-16-tof", "ipd_parts/models/obj_000001.ply", "1", 16, 107, SensorKind::TimeOfFlight, kTimeOfFlightDistance},
       {"uwa-rs1", "uwa/parasaurolophus_6700.ply", "", 0, 0},
       {"pcl-milk", "pcl_milk/milk.pcd", "", 0, 0},
   };
