@@ -114,6 +114,7 @@ struct PyResult {
   py::dict timing_ms;
   float noise_mm = 0;
   std::size_t scene_points = 0;
+  std::size_t flying_points = 0;
 };
 
 PyResult toPython(const DetectionResult& r) {
@@ -133,6 +134,7 @@ PyResult toPython(const DetectionResult& r) {
   out.timing_ms["total"] = r.timing.total_ms;
   out.noise_mm = r.noise_mm;
   out.scene_points = r.scene_points;
+  out.flying_points = r.flying_points;
   return out;
 }
 
@@ -289,7 +291,9 @@ PYBIND11_MODULE(binpose, m) {
       .def_readonly("detections", &PyResult::detections)
       .def_readonly("timing_ms", &PyResult::timing_ms, "preprocess, vote, match, refine, total (ms)")
       .def_readonly("noise_mm", &PyResult::noise_mm, "the scan's noise measured on it, mm (1 sigma)")
-      .def_readonly("scene_points", &PyResult::scene_points);
+      .def_readonly("scene_points", &PyResult::scene_points)
+      .def_readonly("flying_points", &PyResult::flying_points,
+                    "the scan's points dropped as flying pixels, between two surfaces at a depth edge");
 
   m.def(
       "guess_viewpoint",

@@ -54,7 +54,7 @@ float pixelNoise(const PointCloud& scan, const PixelNeighbours& pixels, const St
 }  // namespace
 
 std::vector<char> flyingPixels(const PointCloud& scan, float sigma) {
-  const bool image = scan.organized() && scan.fx > 0 && scan.pixel.size() == scan.size() && sigma > 0;
+  const bool image = scan.organized() && scan.fx > 0 && scan.pixel.size() == scan.size() && sigma >= 0 && std::isfinite(sigma);
   if (!image) return {};
   const long width = scan.width, height = scan.height;
   std::vector<float> depth(static_cast<std::size_t>(width * height), 0.0f);

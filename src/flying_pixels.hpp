@@ -15,7 +15,8 @@ namespace binpose {
 /// jump farther among its 8 neighbouring pixels, and fewer than two within a jump of its own
 /// depth. The jump at depth z is 3 sigma (the scan's noise, mm) and the step of a surface at 60
 /// degrees to the line of sight, tan(60) z / fx: a neighbour on the same surface differs by less.
-/// Such a point belongs to neither surface. Empty for any other cloud.
+/// Such a point belongs to neither surface. Empty for any other cloud, or a sigma that is
+/// negative or not finite.
 std::vector<char> flyingPixels(const PointCloud& scan, float sigma);
 
 /// The scan without its flying pixels, at the noise measured on it as prepareScan measures it

@@ -90,6 +90,18 @@ def test_same_answers_as_the_cli(caps):
         assert d.score == pytest.approx(c["score"], abs=1e-6)
 
 
+def test_flying_pixels_at_a_step_are_dropped(caps):
+    """A step from 700 to 760 mm whose column at the step reads a mix of the two on every other
+    row: those 24 pixels lie on neither surface and are dropped; the surfaces' pixels stay."""
+    _, db, _, _, _ = caps
+    depth = np.full((48, 64), 7600, np.uint16)
+    depth[:, :32] = 7000
+    depth[0::2, 32] = 7300
+    result = binpose.Detector(db).detect_depth(depth, 550.0, 550.0, 31.5, 23.5, 0.1)
+    assert result.scene_points == 48 * 64
+    assert result.flying_points == 24
+
+
 def test_detect_points_drops_non_finite_rows(caps):
     _, db, camera, truth, depth = caps
     rows, cols = np.nonzero(depth)
