@@ -23,8 +23,6 @@ constexpr float kSteepestSlope = 1.7320508f;
 constexpr int kSameSurfaceNeighbours = 2;
 /// Points judged per task, side by side.
 constexpr std::size_t kPointsPerTask = 4096;
-/// The noise measurement's largest neighbour query (the pixel search's limit).
-constexpr std::size_t kMaxNoiseQuery = 32;
 
 /// Whether the point of depth z, its 8 neighbours' depths in `around` (0: no point), lies between
 /// two surfaces.
@@ -44,11 +42,7 @@ bool flying(float z, const float (&around)[8], float jump) {
 float pixelNoise(const PointCloud& scan, const PixelNeighbours& pixels, const StageSettings& p) {
   std::vector<std::uint32_t> every(scan.size());
   std::iota(every.begin(), every.end(), 0u);
-  const auto query = [&](std::uint32_t i, std::size_t k, std::uint32_t* idx) {
-    float d2[kMaxNoiseQuery];
-    return k <= kMaxNoiseQuery && pixels.knn(i, k, idx, d2) ? k : std::size_t{0};
-  };
-  return estimateNoise(scan.points, every, query, p.viewpoint, p.far_noise).sigma;
+  return estimateNoise(scan.points, every, pixelQuery(pixels), p.viewpoint, p.far_noise).sigma;
 }
 
 }  // namespace

@@ -44,8 +44,24 @@ constexpr float kSigmasOfSupport = 1.5f;
 constexpr float kBandRatio = 1.25f;
 constexpr std::size_t kLeastBandFits = 12;
 constexpr float kNoisierThanBest = 3.0f;
+/// The most neighbours a query answers at once (the pixel search's limit).
+constexpr std::size_t kMaxQuery = 32;
 
 }  // namespace
+
+NeighbourQuery pixelQuery(const PixelNeighbours& pixels) {
+  return [&pixels](std::uint32_t i, std::size_t k, std::uint32_t* idx) {
+    float d2[kMaxQuery];
+    return k <= kMaxQuery && pixels.knn(i, k, idx, d2) ? k : std::size_t{0};
+  };
+}
+
+NeighbourQuery gridQuery(const PointGrid& grid, const Points& points) {
+  return [&grid, &points](std::uint32_t i, std::size_t k, std::uint32_t* idx) {
+    float d2[kMaxQuery];
+    return k <= kMaxQuery ? grid.knn(points[i], k, idx, d2) : std::size_t{0};
+  };
+}
 
 float farNoisyRange(std::vector<NoiseSample> samples, float limit) {
   if (!(limit > 0) || samples.empty()) return INFINITY;

@@ -1,6 +1,8 @@
 #pragma once
 // The scan's noise, measured on the scan itself: the residuals of small plane fits.
 #include "stage_settings.hpp"
+#include <binpose/pixel_neighbours.hpp>
+#include <binpose/point_grid.hpp>
 #include <binpose/types.hpp>
 
 #include <cmath>
@@ -38,6 +40,11 @@ float farNoisyRange(std::vector<NoiseSample> samples, float limit);
 /// Up to `count` neighbours of cloud point i (itself included) into `indices`; how many it gave
 /// (0: it could not say).
 using NeighbourQuery = std::function<std::size_t(std::uint32_t i, std::size_t count, std::uint32_t* indices)>;
+
+/// The query through a depth image's pixels (PixelNeighbours::knn; 0 where they cannot prove
+/// the nearest), and through a grid of `points` (PointGrid::knn). The pixels must be usable.
+NeighbourQuery pixelQuery(const PixelNeighbours& pixels);
+NeighbourQuery gridQuery(const PointGrid& grid, const Points& points);
 
 /// Fits planes to the kNoiseNeighbours nearest points of an even sample of `chosen` and takes
 /// the medians of their residuals (sqrt(lambda_0 / (k - 3)), eq. 33-35's least eigenvalue) and

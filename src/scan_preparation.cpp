@@ -17,8 +17,6 @@ namespace {
 
 /// Pending fits finished a few at a time, side by side.
 constexpr std::size_t kFitsPerTask = 16;
-/// The most neighbours the noise estimate asks for at once.
-constexpr std::size_t kMaxNoiseQuery = 32;
 
 /// The scene without the points of the bin's floor and walls. Normals left pending (NaN, their
 /// fits in `fits` by place among the chosen points `chosen`, of which the scene's are a part)
@@ -99,17 +97,11 @@ Points orientedNormals(const PointCloud& scan, const StageSettings& p, PreparedS
         chosen = subsampleScene(scan.points, p.rho_sub, p.subsampling, p.seed);
         out.pixels.emplace(scan);
         if (!out.pixels->usable()) return;
-        measure([&](std::uint32_t i, std::size_t k, std::uint32_t* idx) {
-          float d2[kMaxNoiseQuery];
-          return k <= kMaxNoiseQuery && out.pixels->knn(i, k, idx, d2) ? k : std::size_t{0};
-        });
+        measure(pixelQuery(*out.pixels));
         normalsFor();
       });
   if (!out.pixels->usable()) {  // an unorganized scan: the grid answers every search
-    measure([&](std::uint32_t i, std::size_t k, std::uint32_t* idx) {
-      float d2[kMaxNoiseQuery];
-      return k <= kMaxNoiseQuery ? out.grid->knn(scan.points[i], k, idx, d2) : std::size_t{0};
-    });
+    measure(gridQuery(*out.grid, scan.points));
     normalsFor();
   }
   finishNormals(*out.grid, scan.points, chosen, deferred, out.params.k_normals, p.viewpoint, normals, late);
