@@ -177,6 +177,8 @@ void checkPlaneInputs(const Points& points, const Points& normals, float density
   if (!(density > 0) || !(params.min_area > 0) || !(params.tolerance > 0) || !(params.link > 0))
     throw Error(fmt::format("plane removal needs positive density, area, tolerance and link, got {}, {}, {}, {}", density,
                             params.min_area, params.tolerance, params.link));
+  if (!(params.hole >= 0) || !std::isfinite(params.hole))
+    throw Error(fmt::format("plane removal needs a finite hole width >= 0, got {}", params.hole));
 }
 
 /// The first of the hypotheses with the most probe points on them, scored side by side.
@@ -202,7 +204,7 @@ Plane bestHypothesis(const detail::OrientedLanes& probe_points, const std::vecto
 Plane refitted(const Points& points, std::span<const std::uint32_t> inliers, const Plane& like) {
   Plane fit;
   if (!fitPlane(points, inliers, fit)) return like;
-  return fit.normal.dot(like.normal) < 0 ? Plane{-fit.normal, -fit.d} : fit;
+  return fit.normal.dot(like.normal) < 0 ? Plane{-fit.normal, -fit.d, {}} : fit;
 }
 
 /// A plane's refits until its inliers grow by less than kRefitGrowth, at most kMostRefits. A
@@ -212,54 +214,6 @@ Plane refitted(const Points& points, std::span<const std::uint32_t> inliers, con
 /// background turned on which point the search drew.
 constexpr int kMostRefits = 10;
 constexpr float kRefitGrowth = 0.01f;
-
-/// Cells of the inliers' footprint: at most about this many (a wide plane gets larger cells).
-constexpr double kMaxFootprintCells = 1 << 22;
-
-/// A plane's inliers' footprint on it: cells of side `link` or more (u, v along the plane), set
-/// where an inlier lies or in a gap of up to two cells between such cells.
-struct Footprint {
-  Vec3 u, v;
-  float side = 0, u0 = INFINITY, v0 = INFINITY, u1 = -INFINITY, v1 = -INFINITY;
-  long cols = 0, rows = 0;
-  std::vector<char> on;
-
-  Footprint(const Points& points, std::span<const std::uint32_t> inliers, const Plane& plane, float link)
-      : u(plane.normal.unitOrthogonal()), v(plane.normal.cross(u)) {
-    for (const auto i : inliers) {
-      const float a = u.dot(points[i]), b = v.dot(points[i]);
-      u0 = std::min(u0, a), u1 = std::max(u1, a), v0 = std::min(v0, b), v1 = std::max(v1, b);
-    }
-    if (!(u1 >= u0 && v1 >= v0)) return;
-    side = std::max(link, static_cast<float>(std::sqrt(double(u1 - u0) * double(v1 - v0) / kMaxFootprintCells)));
-    cols = static_cast<long>((u1 - u0) / side) + 1, rows = static_cast<long>((v1 - v0) / side) + 1;
-    on.assign(static_cast<std::size_t>(cols * rows), 0);
-    for (const auto i : inliers) on[cell(points[i])] = 1;
-    on = grown(grown(on, 1), 0);  // closed: gaps of up to two cells between inliers filled, the edge kept
-  }
-  /// `from` with every cell next to one of `value` (8-connected, within the grid) set to it.
-  [[nodiscard]] std::vector<char> grown(const std::vector<char>& from, char value) const {
-    std::vector<char> out = from;
-    for (long y = 0; y < rows; ++y)
-      for (long x = 0; x < cols; ++x)
-        for (long dy = -1; dy <= 1; ++dy)
-          for (long dx = -1; dx <= 1; ++dx) {
-            const long a = x + dx, b = y + dy;
-            if (a >= 0 && b >= 0 && a < cols && b < rows && from[static_cast<std::size_t>(b * cols + a)] == value)
-              out[static_cast<std::size_t>(y * cols + x)] = value;
-          }
-    return out;
-  }
-  [[nodiscard]] bool within(const Vec3& p) const {
-    const float a = u.dot(p), b = v.dot(p);
-    return a >= u0 && a <= u1 && b >= v0 && b <= v1;
-  }
-  [[nodiscard]] std::size_t cell(const Vec3& p) const {
-    const auto x = std::clamp(static_cast<long>((u.dot(p) - u0) / side), 0L, cols - 1);
-    const auto y = std::clamp(static_cast<long>((v.dot(p) - v0) / side), 0L, rows - 1);
-    return static_cast<std::size_t>(y * cols + x);
-  }
-};
 
 /// The points farther than 3 tolerances behind a plane, on the side away from the sensor.
 struct Behind {
@@ -277,9 +231,9 @@ struct Behind {
 /// What `plane` hides from the sensor at `viewpoint` (Behind).
 Behind pointsBehind(const Points& points, std::span<const std::uint32_t> inliers, const Plane& plane, float tolerance,
                     float link, const Vec3& viewpoint) {
-  const Footprint footprint(points, inliers, plane, link);
+  const PlaneFootprint footprint(points, inliers, plane, link, 0.0f);
   Behind behind;
-  if (footprint.on.empty()) return behind;
+  if (footprint.empty()) return behind;
   const float sensor_side = plane.normal.dot(viewpoint) - plane.d;
   for (const Vec3& p : points) {
     const float point_side = plane.normal.dot(p) - plane.d;
@@ -287,9 +241,15 @@ Behind pointsBehind(const Points& points, std::span<const std::uint32_t> inliers
     behind.below += footprint.within(p);
     if (!(sensor_side > 0)) continue;
     const Vec3 crossing = viewpoint + (sensor_side / (sensor_side - point_side)) * (p - viewpoint);
-    behind.seen_through += footprint.within(crossing) && footprint.on[footprint.cell(crossing)];
+    behind.seen_through += footprint.on(crossing);
   }
   return behind;
+}
+
+/// `plane` with its extent: its inliers' footprint, holes up to `hole` mm wide filled.
+Plane withExtent(const Points& points, std::span<const std::uint32_t> inliers, Plane plane, float link, float hole) {
+  plane.extent = std::make_shared<const PlaneFootprint>(points, inliers, plane, link, hole);
+  return plane;
 }
 
 /// Floor and walls meet at right angles; drafted walls and a tilted scan within this.
@@ -345,7 +305,7 @@ bool fitPlane(const Points& points, std::span<const std::uint32_t> which, Plane&
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (const auto i : which) mean += points[i].cast<double>();
   mean /= static_cast<double>(which.size());
-  plane = {n, n.dot(mean.cast<float>())};
+  plane = {n, n.dot(mean.cast<float>()), {}};
   return true;
 }
 
@@ -396,7 +356,7 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
     for (int t = 0; t < params.trials; ++t) drawn.push_back(left[rng.below(left.size())]);
     finish(drawn);
     hypotheses.clear();
-    for (const auto s : drawn) hypotheses.push_back({normals[s], normals[s].dot(points[s])});
+    for (const auto s : drawn) hypotheses.push_back({normals[s], normals[s].dot(points[s]), {}});
     Plane best = bestHypothesis(probe_points, hypotheses, params.tolerance, min_cos, counts);
     // The hypothesis's inliers, then those of their own plane, refitted until they stop growing.
     for (int fit = 0; fit <= kMostRefits; ++fit) {
@@ -417,7 +377,7 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
     if (!below && !through) continue;  // not background: a layer of parts
     // The farthest surface, the bin's floor or a table: background for verification even where
     // what the parts leave of it is in pieces each smaller than min_count (those stay in the votes).
-    Background* b = &background.emplace_back(Background{best, inliers, below, through, {}});
+    Background* b = &background.emplace_back(Background{withExtent(points, inliers, best, params.link, params.hole), inliers, below, through, {}});
     flood.run([&, b] {
       for (auto& patch : detail::linkedPatches(points, b->inliers, params.link, b->plane.normal))
         if (patch.size() >= min_count) b->patches.push_back(std::move(patch));

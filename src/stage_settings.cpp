@@ -65,6 +65,7 @@ StageSettings stageSettings(const DetectionParams& params, float model_diameter)
   s.candidate_spacing *= k;
   s.plane_min_area *= k * k;
   s.plane_tolerance *= k;
+  s.plane_hole *= k;
   s.icp_max_distance *= k;
   s.verify_tolerance *= k;
   s.far_noise *= k;
@@ -76,6 +77,7 @@ PlaneParams planeParams(const StageSettings& s) {
   planes.min_area = s.plane_min_area;
   planes.tolerance = s.plane_tolerance;
   planes.link = kPlaneLinkSpacings / std::sqrt(s.rho_sub);
+  planes.hole = s.plane_hole;
   planes.seed = s.seed;
   planes.viewpoint = s.viewpoint;
   return planes;
@@ -87,6 +89,7 @@ void validateStages(const StageSettings& s) {
   nonNegative(s.plane_min_area, "plane_min_area");
   nonNegative(s.far_noise, "far_noise");
   positive(s.plane_tolerance, "plane_tolerance");
+  nonNegative(s.plane_hole, "plane_hole");
   nonNegative(s.candidate_spacing, "candidate_spacing");
   nonNegative(s.partner_spacing, "partner_spacing");
   nonNegative(s.voter_spacing, "voter_spacing");
@@ -100,6 +103,7 @@ void validateStages(const StageSettings& s) {
   share(s.min_visible_support, "min_visible_support");
   share(s.max_outline_share, "max_outline_share");
   share(s.min_outline_drop, "min_outline_drop");
+  share(s.max_sunk_share, "max_sunk_share");
   range(s.retry_min_clique, 0, 1 << 20, "retry_min_clique");
   if (!(s.grazing_angle > 0 && s.grazing_angle <= 90))
     throw Error(fmt::format("grazing_angle must lie in (0, 90] degrees, got {}", s.grazing_angle));

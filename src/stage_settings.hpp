@@ -28,6 +28,9 @@ struct StageSettings : DetectionParams {
   bool remove_planes = true;
   float plane_min_area = 0.0f;   ///< mm^2; 0: the model's largest possible flat face (boundingFaceArea)
   float plane_tolerance = 1.5f;  ///< largest distance of a plane's point from it, mm
+  /// A background plane's extent has holes up to this wide filled, mm (PlaneParams::hole): the
+  /// model's diameter, what a copy lying on the floor hides of it.
+  float plane_hole = 60.0f;
 
   // --- votes (4.3-4.4) ----------------------------------------------------------------------
   int candidates_per_point = 12;  ///< model points kept per scene point (the thesis: 1, eq. 12's maximum)
@@ -87,6 +90,10 @@ struct StageSettings : DetectionParams {
   /// laid on a patch of a larger flat surface (a table, a box's side, a face of another part),
   /// its body sunk into it, meets the scan on one plane, and nothing falls away around it.
   float min_outline_drop = 0.15f;
+  /// A detection with more than this share of its model points inside the bin's floor, a wall or
+  /// a table that the scan shows around it (SceneEvidence::sinking) is dropped: no part can lie
+  /// there, though the part above hides the floor from the free-space test (1: no test).
+  float max_sunk_share = 0.05f;
   /// After the sub-groups, the scene's flat regions that no detection explains, each about as large
   /// as a flat face of the model, are tried as that face (face_hypotheses.hpp): a copy that shows
   /// one flat face only gives no clique.

@@ -162,6 +162,7 @@ Evidence Matcher::scoredEvidence(const Pose& pose, std::vector<std::uint32_t>& s
 bool Matcher::stands(const Pose& pose, float score, const Evidence& e, std::span<const std::uint32_t> support) const {
   if (score < p.min_score) return false;
   if (e.visibleSupport() < p.min_visible_support) return false;  // met by the scan only in passing
+  if (sunk(pose)) return false;  // inside the floor, a wall or the table
   return outlineStandsOut(pose, support);
 }
 
@@ -176,6 +177,19 @@ bool Matcher::outlineStandsOut(const Pose& pose, std::span<const std::uint32_t> 
   if (o.judged < kMinDropJudged || o.droppedShare() >= p.min_outline_drop) return true;
   // Nothing falls away around it: it stands only where the scan shows more of it than one plane.
   return shareOnOnePlane(scan.points, support, kOnePlaneTolerances * p.verify_tolerance) < kOnePlaneShare;
+}
+
+bool Matcher::sunk(const Pose& pose) const {
+  // Deeper than three tolerances: a right pose on a floor whose fit a sensor's bias tilts stays
+  // clear. To half the part's diameter: a pose sunk into a floor has part of its body just
+  // beneath it, and what lies deeper under a plane's edge (below the bin's rim) is under
+  // something else.
+  constexpr float kMarginTolerances = 3.0f;
+  constexpr float kReachDiameters = 0.5f;
+  if (p.max_sunk_share >= 1.0f || evidence.background().empty()) return false;
+  const Sinking s = evidence.sinking(pose, scored_model, kMarginTolerances * p.verify_tolerance,
+                                     kReachDiameters * db.model().diameter);
+  return s.share() > p.max_sunk_share;
 }
 
 float Matcher::prescore(const Pose& pose, bool second_pass) const {

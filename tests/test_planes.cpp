@@ -313,3 +313,28 @@ TEST(Planes, ANoisyFloorWithRoughNormalsIsFoundWholeAndLevel) {
   const auto on = std::count(flat.begin(), flat.end(), 1);
   EXPECT_GT(on, static_cast<long>(0.9 * static_cast<double>(points.size())));
 }
+
+// The extent bridges a hole that a part lying on the floor leaves in it, but neither the inside
+// of a bin's rim (a ring of the same plane) nor what lies off the plane's edge.
+TEST(PlaneFootprint, BridgesAPartsHoleButNotTheInsideOfARim) {
+  const Plane level{Vec3::UnitZ(), 0.0f, {}};
+  Points floor, rim;
+  for (float x = -150; x <= 150; x += 2)
+    for (float y = -150; y <= 150; y += 2) {
+      if (std::abs(x) > 20 || std::abs(y) > 30) floor.emplace_back(x, y, 0.0f);  // a 40 x 60 mm hole
+      if (std::abs(x) > 130 || std::abs(y) > 130) rim.emplace_back(x, y, 0.0f);   // a 20 mm wide ring
+    }
+  const auto all = [](const Points& p) {
+    std::vector<std::uint32_t> i(p.size());
+    std::iota(i.begin(), i.end(), 0u);
+    return i;
+  };
+  const PlaneFootprint on_floor(floor, all(floor), level, 6.0f, 60.0f), on_rim(rim, all(rim), level, 6.0f, 60.0f);
+  EXPECT_TRUE(on_floor.covers(Vec3(100, 100, -30)));  // on it, a point below it
+  EXPECT_TRUE(on_floor.covers(Vec3(0, 0, -30)));      // in the hole
+  EXPECT_FALSE(on_floor.covers(Vec3(200, 0, -30)));   // off its edge
+  EXPECT_TRUE(on_rim.covers(Vec3(140, 0, -30)));
+  EXPECT_FALSE(on_rim.covers(Vec3(0, 0, -30)));       // inside the bin
+  EXPECT_FALSE(on_rim.covers(Vec3(90, 90, -30)));     // near its inner corner
+  EXPECT_NEAR(on_floor.area(), 300.0 * 300.0 - 40.0 * 60.0, 0.1 * 300.0 * 300.0);
+}

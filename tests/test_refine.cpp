@@ -90,9 +90,44 @@ TEST(Evidence, TheBinsPlanesDoNotSupportAPart) {
     return evidence.evaluate(flush, box.points, box.normals, 1.0f, box.sample_radius).score();
   };
   EXPECT_GT(score({}), 0.8f);
-  EXPECT_LT(score({Plane{Vec3::UnitZ(), 500.0f}}), 0.05f);
+  EXPECT_LT(score({Plane{Vec3::UnitZ(), 500.0f, {}}}), 0.05f);
   // A plane elsewhere changes nothing.
-  EXPECT_GT(score({Plane{Vec3::UnitX(), 300.0f}}), 0.8f);
+  EXPECT_GT(score({Plane{Vec3::UnitX(), 300.0f, {}}}), 0.8f);
+}
+
+// A box lying on the floor hides the floor beneath it; the same box stood on end and sunk half
+// into that hidden floor is hidden there too (the free-space test sees the box's top first),
+// but lies inside the floor that the scan shows all around it.
+TEST(Evidence, APoseSunkIntoTheFloorIsToldFromOneLyingOnIt) {
+  const OrientedModel box = prepareModel(builtinPart("box"), ModelParams{});  // 60 x 40 x 20, centred
+  Points scan;
+  std::vector<std::uint32_t> floor;  // the plane z = 500 mm, seen from the origin, but for the box
+  for (float x = -150; x <= 150; x += 1)
+    for (float y = -150; y <= 150; y += 1) {
+      if (std::abs(x) <= 30 && std::abs(y) <= 20) {
+        scan.emplace_back(x, y, 480.0f);  // the box's top
+        continue;
+      }
+      floor.push_back(static_cast<std::uint32_t>(scan.size()));
+      scan.emplace_back(x, y, 500.0f);
+    }
+  Plane plane{-Vec3::UnitZ(), -500.0f, {}};  // its normal towards the sensor
+  plane.extent = std::make_shared<const PlaneFootprint>(scan, floor, plane, 3.0f, box.diameter);
+  const PointGrid grid(scan);
+  SceneEvidence evidence(scan, grid, Vec3::Zero());
+  evidence.setBackground({plane}, 1.0f);
+  const PreparedModel model(box.points, box.normals);
+  const auto share = [&](const Pose& pose) { return evidence.sinking(pose, model, 3.0f, box.diameter / 2).share(); };
+  Pose lying = Pose::Identity();
+  lying.translation() = Vec3(0, 0, 490);
+  Pose on_end = lying;  // its 60 mm side along the line of sight, its middle in the floor
+  on_end.linear() = Eigen::AngleAxisf(float(M_PI) / 2, Vec3::UnitY()).toRotationMatrix();
+  on_end.translation() = Vec3(0, 0, 500);
+  EXPECT_EQ(share(lying), 0.0f);
+  EXPECT_GT(share(on_end), 0.3f);
+  // Off the floor's edge nothing is known of what lies behind it.
+  on_end.translation() = Vec3(300, 0, 500);
+  EXPECT_EQ(share(on_end), 0.0f);
 }
 
 // The share of what the scan should show that it supports: high for a right pose two thirds

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -23,18 +24,59 @@ struct PlaneParams {
   /// through it (their line of sight crossing it where its inliers lie), is a layer of parts,
   /// not the bin.
   float max_behind = 0.02f;
+  /// A background plane's extent (Plane::extent) bridges holes up to this wide, mm: what the
+  /// parts lying on it hide of it.
+  float hole = 0.0f;
   Vec3 viewpoint = Vec3::Zero();  ///< the sensor's position, mm (normals face it)
   int max_planes = 8;         ///< planes looked for, largest first
   int trials = 300;           ///< RANSAC hypotheses per plane (one oriented point each)
   std::uint64_t seed = 1;
 };
 
+class PlaneFootprint;
+
 /// A plane n . x = d (n a unit vector, d in mm).
 struct Plane {
   Vec3 normal = Vec3::UnitZ();
   float d = 0;
+  /// Where the scan shows the plane (largePlanes sets it on the planes it finds; none: everywhere).
+  std::shared_ptr<const PlaneFootprint> extent;
   [[nodiscard]] float distance(const Vec3& x) const { return std::abs(normal.dot(x) - d); }
+  /// Whether x's foot on the plane lies on its extent (PlaneFootprint::covers).
+  [[nodiscard]] bool covers(const Vec3& x) const;
 };
+
+/// A plane's inliers' footprint on it: cells (u, v along the plane) of side `cell` or more (at
+/// most about 4 M cells), set where an inlier lies or in a gap of up to two cells between such
+/// cells.
+class PlaneFootprint {
+ public:
+  /// `hole`: covers() bridges holes up to this wide, mm.
+  PlaneFootprint(const Points& points, std::span<const std::uint32_t> inliers, const Plane& plane, float cell, float hole);
+  [[nodiscard]] bool empty() const { return on_.empty(); }
+  /// The set cells' area, mm^2.
+  [[nodiscard]] float area() const { return area_; }
+  /// Whether p's foot on the plane lies within the inliers' bounding rectangle.
+  [[nodiscard]] bool within(const Vec3& p) const {
+    const float a = u_.dot(p), b = v_.dot(p);
+    return a >= u0_ && a <= u1_ && b >= v0_ && b <= v1_;
+  }
+  /// Whether p's foot lies within that rectangle on a set cell.
+  [[nodiscard]] bool on(const Vec3& p) const { return within(p) && on_[cell(p)] != 0; }
+  /// Whether p's foot lies on a set cell or in a hole of the footprint, with set cells within
+  /// `hole` of it along all four directions of the grid (what a part lying on a floor hides of
+  /// it; not the inside of a bin's rim, nor a bay in its edge), a cell in from the edge.
+  [[nodiscard]] bool covers(const Vec3& p) const { return within(p) && covered_[cell(p)] != 0; }
+
+ private:
+  [[nodiscard]] std::size_t cell(const Vec3& p) const;
+  Vec3 u_, v_;
+  float side_ = 0, area_ = 0, u0_ = INFINITY, v0_ = INFINITY, u1_ = -INFINITY, v1_ = -INFINITY;
+  long cols_ = 0, rows_ = 0;
+  std::vector<char> on_, covered_;
+};
+
+inline bool Plane::covers(const Vec3& x) const { return extent == nullptr || extent->covers(x); }
 
 /// The least-squares plane of points[which] (fitPlaneNormal, eq. 30-38, through their centroid);
 /// false for fewer than three points or a degenerate fit.

@@ -136,6 +136,16 @@ struct Evidence {
   }
 };
 
+/// How far a posed model lies inside the bin's planes (SceneEvidence::sinking): on the side of a
+/// floor, a wall or a table away from the sensor, within the plane's extent, where no part can be.
+struct Sinking {
+  int points = 0;      ///< model points judged
+  int sunk = 0;        ///< ... inside a background plane (SceneEvidence::sinking)
+  float deepest = 0;   ///< the farthest of them behind it, mm
+  /// sunk / points (0 when none is judged).
+  [[nodiscard]] float share() const { return points == 0 ? 0.0f : static_cast<float>(sunk) / static_cast<float>(points); }
+};
+
 /// What the scan shows just beyond a posed model's outline, as the sensor sees it: where the scan
 /// there lies on the part's own surface continued (its tangent plane), the scan's surface goes on
 /// where the part ends, and the part explains only a piece of it.
@@ -185,6 +195,13 @@ class SceneEvidence {
   [[nodiscard]] Evidence evaluate(const Pose& pose, const Points& model_points, const Points& model_normals,
                                   float tolerance, float model_spacing,
                                   std::vector<std::uint32_t>* support = nullptr) const;
+  /// Every model point posed, hidden or not, against the background planes (Sinking): a pose
+  /// sunk into the floor that the scan shows around it, though the part above hides the floor
+  /// beneath it from the free-space test. A point is sunk when it lies behind a plane by more
+  /// than `margin` and at most `reach` (mm), its foot on the plane's extent (Plane::covers), and
+  /// over no plane parallel to it and deeper that the scan shows there. Planes whose extent is
+  /// smaller than (2 reach)^2 are not judged.
+  [[nodiscard]] Sinking sinking(const Pose& pose, const PreparedModel& model, float margin, float reach) const;
   /// The scan beyond the posed model's outline (OutlineEvidence; src/outline.cpp): a wrong pose
   /// that lays one face of the part on a larger surface of the scan (the top of another part,
   /// the floor) is supported wherever it lies, but the surface goes on past its edges.
