@@ -1,4 +1,4 @@
-// Where the scan shows a plane: its inliers' cells on it, closed.
+// Where the scan shows a plane: its inliers' cells on it, and the holes between them.
 #include <binpose/planes.hpp>
 
 #include <algorithm>

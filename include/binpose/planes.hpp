@@ -65,7 +65,7 @@ class PlaneFootprint {
   [[nodiscard]] bool on(const Vec3& p) const { return within(p) && on_[cell(p)] != 0; }
   /// Whether p's foot lies on a set cell or in a hole of the footprint, with set cells within
   /// `hole` of it along all four directions of the grid (what a part lying on a floor hides of
-  /// it; not the inside of a bin's rim, nor a bay in its edge), a cell in from the edge.
+  /// it; not the inside of a bin's rim, nor a bay in its edge).
   [[nodiscard]] bool covers(const Vec3& p) const { return within(p) && covered_[cell(p)] != 0; }
 
  private:
