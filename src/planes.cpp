@@ -228,10 +228,9 @@ struct Behind {
   std::size_t seen_through = 0;
 };
 
-/// What `plane` hides from the sensor at `viewpoint` (Behind).
-Behind pointsBehind(const Points& points, std::span<const std::uint32_t> inliers, const Plane& plane, float tolerance,
-                    float link, const Vec3& viewpoint) {
-  const PlaneFootprint footprint(points, inliers, plane, link, 0.0f);
+/// What `plane` hides from the sensor at `viewpoint` (Behind), `footprint` its inliers'.
+Behind pointsBehind(const Points& points, const Plane& plane, const PlaneFootprint& footprint, float tolerance,
+                    const Vec3& viewpoint) {
   Behind behind;
   if (footprint.empty()) return behind;
   const float sensor_side = plane.normal.dot(viewpoint) - plane.d;
@@ -244,12 +243,6 @@ Behind pointsBehind(const Points& points, std::span<const std::uint32_t> inliers
     behind.seen_through += footprint.on(crossing);
   }
   return behind;
-}
-
-/// `plane` with its extent: its inliers' footprint, holes up to `hole` mm wide filled.
-Plane withExtent(const Points& points, std::span<const std::uint32_t> inliers, Plane plane, float link, float hole) {
-  plane.extent = std::make_shared<const PlaneFootprint>(points, inliers, plane, link, hole);
-  return plane;
 }
 
 /// Floor and walls meet at right angles; drafted walls and a tilted scan within this.
@@ -370,14 +363,16 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
     if (inliers.size() < min_count) break;  // the largest plane left is too small: done
     for (const auto i : inliers) tried[i] = 1;  // small patches of it stay in the scene, and are not tried again
     most_inliers = std::max(most_inliers, inliers.size());
-    const Behind behind = pointsBehind(points, inliers, best, params.tolerance, params.link, params.viewpoint);
+    // The inliers' footprint, once: what the plane hides, and its extent as background.
+    best.extent = std::make_shared<const PlaneFootprint>(points, inliers, best, params.link, params.hole);
+    const Behind behind = pointsBehind(points, best, *best.extent, params.tolerance, params.viewpoint);
     const float most = params.max_behind * static_cast<float>(points.size());
     const bool below = static_cast<float>(behind.below) <= most;
     const bool through = static_cast<float>(behind.seen_through) <= params.max_behind * static_cast<float>(inliers.size());
     if (!below && !through) continue;  // not background: a layer of parts
     // The farthest surface, the bin's floor or a table: background for verification even where
     // what the parts leave of it is in pieces each smaller than min_count (those stay in the votes).
-    Background* b = &background.emplace_back(Background{withExtent(points, inliers, best, params.link, params.hole), inliers, below, through, {}});
+    Background* b = &background.emplace_back(Background{best, inliers, below, through, {}});
     flood.run([&, b] {
       for (auto& patch : detail::linkedPatches(points, b->inliers, params.link, b->plane.normal))
         if (patch.size() >= min_count) b->patches.push_back(std::move(patch));
