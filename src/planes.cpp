@@ -233,9 +233,9 @@ Behind pointsBehind(const Points& points, const Plane& plane, const PlaneFootpri
                     const Vec3& viewpoint) {
   Behind behind;
   if (footprint.empty()) return behind;
-  const float sensor_side = plane.normal.dot(viewpoint) - plane.d;
+  const float sensor_side = plane.side(viewpoint);
   for (const Vec3& p : points) {
-    const float point_side = plane.normal.dot(p) - plane.d;
+    const float point_side = plane.side(p);
     if (!(point_side < -3.0f * tolerance)) continue;
     behind.below += footprint.within(p);
     if (!(sensor_side > 0)) continue;
@@ -244,9 +244,6 @@ Behind pointsBehind(const Points& points, const Plane& plane, const PlaneFootpri
   }
   return behind;
 }
-
-/// Floor and walls meet at right angles; drafted walls and a tilted scan within this.
-constexpr float kSquareDegrees = 15.0f;
 
 /// A plane the search found that hides (almost) nothing by one test or the other (Behind), and
 /// its connected patches of min_count points or more.
@@ -269,7 +266,7 @@ struct Background {
 /// verification.
 bool ofTheBin(const Background& b, bool largest, const std::vector<Plane>& kept) {
   if (kept.empty()) return b.hides_nothing_below || (largest && b.hides_nothing_through);
-  const float c = std::abs(b.plane.normal.dot(kept.front().normal)), off = kSquareDegrees * float(M_PI) / 180.0f;
+  const float c = std::abs(b.plane.normal.dot(kept.front().normal)), off = detail::kSquareDegrees * float(M_PI) / 180.0f;
   if (c >= std::cos(off)) return b.hides_nothing_below || b.hides_nothing_through;
   return c <= std::sin(off) && b.hides_nothing_below;
 }

@@ -28,8 +28,8 @@ constexpr std::size_t kChunk = 128;
 /// scan shows in front of it lies inside that solid: physically impossible, counted as
 /// contradicted (a right pose resting on the floor touches it within the noise).
 constexpr float kInsideMargin = 2.0f;
-/// Planes within 15 degrees are parallel: another floor, a step, the bin's rim.
-const float kParallelCos = std::cos(15.0f * float(M_PI) / 180.0f);
+/// Background planes this close to parallel: another floor, a step, the bin's rim.
+const float kParallelCos = std::cos(detail::kSquareDegrees * float(M_PI) / 180.0f);
 static_assert(kChunk % 4 == 0, "a chunk starts on a SIMD lane boundary");
 
 /// One chunk's share of ICP's normal equations.
@@ -392,7 +392,7 @@ long SceneEvidence::cellAt(float u, float v) const {
 bool SceneEvidence::insideBackground(const Vec3& p, float range, float seen_range, float tolerance) const {
   const float margin = kInsideMargin * tolerance;
   for (const Plane& b : background_) {
-    const float side_viewpoint = b.normal.dot(viewpoint_) - b.d, side_point = b.normal.dot(p) - b.d;
+    const float side_viewpoint = b.side(viewpoint_), side_point = b.side(p);
     if (side_viewpoint * side_point >= 0 || std::abs(side_point) <= margin) continue;  // in front, or touching
     // Where the line of sight crosses the plane; the scan must see the plane there.
     const float crossing = range * side_viewpoint / (side_viewpoint - side_point);
@@ -403,20 +403,17 @@ bool SceneEvidence::insideBackground(const Vec3& p, float range, float seen_rang
 
 namespace {
 
-/// Which side of plane b x lies on, times its distance: positive on the normal's side.
-float sideOf(const Plane& b, const Vec3& x) { return b.normal.dot(x) - b.d; }
-
 /// How far p lies inside background plane b: behind it as the sensor at `viewpoint` sees it, by
 /// more than `margin` and at most `reach`, its foot on b's extent, and over no other plane
 /// parallel to b and behind it that the scan shows there (b then ends short of p: the bin's rim
 /// above the floor). 0 when it does not.
 float depthInside(const Plane& b, std::span<const Plane> planes, const Vec3& p, const Vec3& viewpoint, float margin, float reach) {
-  const float side_viewpoint = sideOf(b, viewpoint), side_point = sideOf(b, p);
+  const float side_viewpoint = b.side(viewpoint), side_point = b.side(p);
   const float depth = std::abs(side_point);
   if (!(side_viewpoint * side_point < 0 && depth > margin && depth <= reach && b.covers(p))) return 0;
   const bool over_deeper = std::any_of(planes.begin(), planes.end(), [&](const Plane& c) {
     if (&c == &b || std::abs(c.normal.dot(b.normal)) < kParallelCos) return false;
-    const float c_viewpoint = sideOf(c, viewpoint), c_point = sideOf(c, p);
+    const float c_viewpoint = c.side(viewpoint), c_point = c.side(p);
     return std::abs(c_viewpoint) > std::abs(side_viewpoint) && (c_viewpoint * c_point > 0 || std::abs(c_point) <= margin) &&
            c.covers(p);
   });

@@ -41,7 +41,9 @@ struct Plane {
   float d = 0;
   /// Where the scan shows the plane (largePlanes sets it on the planes it finds; none: everywhere).
   std::shared_ptr<const PlaneFootprint> extent;
-  [[nodiscard]] float distance(const Vec3& x) const { return std::abs(normal.dot(x) - d); }
+  /// x's distance from the plane, positive on the normal's side, mm.
+  [[nodiscard]] float side(const Vec3& x) const { return normal.dot(x) - d; }
+  [[nodiscard]] float distance(const Vec3& x) const { return std::abs(side(x)); }
   /// Whether x's foot on the plane lies on its extent (PlaneFootprint::covers).
   [[nodiscard]] bool covers(const Vec3& x) const;
 };
@@ -112,6 +114,10 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
                               std::vector<Plane>* removed = nullptr, const LateNormals* late = nullptr);
 
 namespace detail {
+/// The bin's floor and walls meet at right angles; planes within this many degrees of parallel
+/// (or square) are taken as parallel (or square): drafted walls, a tilted scan, the bin's rim
+/// over its floor.
+inline constexpr float kSquareDegrees = 15.0f;
 /// A link from patch point a to its neighbour b, both indices into the points, in the patch
 /// grown from `seed`: whether b joins the patch.
 using Joins = std::function<bool(std::uint32_t b, std::uint32_t a, std::uint32_t seed)>;
