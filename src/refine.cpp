@@ -403,21 +403,20 @@ bool SceneEvidence::insideBackground(const Vec3& p, float range, float seen_rang
 
 namespace {
 
-/// How far p lies inside background plane b: behind it as the sensor at `viewpoint` sees it, by
+/// Whether p lies inside background plane b: behind it as the sensor at `viewpoint` sees it, by
 /// more than `margin` and at most `reach`, its foot on b's extent, and over no other plane
 /// parallel to b and behind it that the scan shows there (b then ends short of p: the bin's rim
-/// above the floor). 0 when it does not.
-float depthInside(const Plane& b, std::span<const Plane> planes, const Vec3& p, const Vec3& viewpoint, float margin, float reach) {
+/// above the floor).
+bool inside(const Plane& b, std::span<const Plane> planes, const Vec3& p, const Vec3& viewpoint, float margin, float reach) {
   const float side_viewpoint = b.side(viewpoint), side_point = b.side(p);
   const float depth = std::abs(side_point);
-  if (!(side_viewpoint * side_point < 0 && depth > margin && depth <= reach && b.covers(p))) return 0;
-  const bool over_deeper = std::any_of(planes.begin(), planes.end(), [&](const Plane& c) {
+  if (!(side_viewpoint * side_point < 0 && depth > margin && depth <= reach && b.covers(p))) return false;
+  return std::none_of(planes.begin(), planes.end(), [&](const Plane& c) {
     if (&c == &b || std::abs(c.normal.dot(b.normal)) < kParallelCos) return false;
     const float c_viewpoint = c.side(viewpoint), c_point = c.side(p);
     return std::abs(c_viewpoint) > std::abs(side_viewpoint) && (c_viewpoint * c_point > 0 || std::abs(c_point) <= margin) &&
            c.covers(p);
   });
-  return over_deeper ? 0 : depth;
 }
 
 }  // namespace
@@ -432,10 +431,8 @@ Sinking SceneEvidence::sinking(const Pose& pose, const PreparedModel& model, flo
   if (judged.empty()) return s;
   for (const Vec3& x : model.points()) {
     const Vec3 p = pose * x;
-    float depth = 0;
-    for (const Plane* b : judged) depth = std::max(depth, depthInside(*b, background_, p, viewpoint_, margin, reach));
-    s.sunk += depth > 0;
-    s.deepest = std::max(s.deepest, depth);
+    s.sunk += std::any_of(judged.begin(), judged.end(),
+                          [&](const Plane* b) { return inside(*b, background_, p, viewpoint_, margin, reach); });
   }
   return s;
 }

@@ -141,7 +141,6 @@ struct Evidence {
 struct Sinking {
   int points = 0;      ///< model points judged
   int sunk = 0;        ///< ... inside a background plane (SceneEvidence::sinking)
-  float deepest = 0;   ///< the farthest of them behind it, mm
   /// sunk / points (0 when none is judged).
   [[nodiscard]] float share() const { return points == 0 ? 0.0f : static_cast<float>(sunk) / static_cast<float>(points); }
 };
