@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <iterator>
 #include <numeric>
 #include <optional>
 #include <span>
@@ -29,7 +30,11 @@ constexpr float kLinkSpacings = 2.5f;
 constexpr float kLeastAreaShare = 0.6f, kMostAreaShare = 1.3f;
 /// A region too large for any face but as large as 2 to this many copies of one is tried in
 /// pieces, one per copy lying side by side.
-constexpr int kMostCopies = 4;
+constexpr int kMostCopies = 6;
+/// A region that is not one plane is split into planes (planarPieces): this many plane
+/// hypotheses each, and at most this many planes taken out of it.
+constexpr int kPieceTrials = 48;
+constexpr int kMostPieces = 6;
 /// k-means steps of a split (from farthest-point seeds, a few settle touching faces).
 constexpr int kSplitSteps = 8;
 /// ... and its extent along each principal axis (RMS from the centre) within this share of the face's.
@@ -54,6 +59,10 @@ constexpr int kMostFineSteps = 12;
 /// left the gears lying flat on the structured-light bins to their wrong clique poses (scores
 /// 0.2-0.35), where the laid poses of the gear's two sides came within a factor of two.
 constexpr float kMostRivalShare = 0.7f;
+/// A laid pose stands where the scan falls away behind at least this share of its outline
+/// (standsOut), judged on at least kLeastOutline steps of it.
+constexpr float kLeastOutlineDrop = 0.4f;
+constexpr int kLeastOutline = 4;
 
 /// The points at `members`' plane fit: centroid, unit normal turned like `towards`, RMS distance.
 struct PlaneFit {
@@ -147,6 +156,49 @@ FlatRegion regionOf(const Matcher& m, std::vector<std::uint32_t> members) {
   return region;
 }
 
+/// The `members` within `tolerance` of the plane through `centre` with unit `normal`, their own
+/// normals within `min_cos` of its.
+std::vector<std::uint32_t> onPlane(const PreparedScene& scene, std::span<const std::uint32_t> members, const Vec3& centre,
+                                   const Vec3& normal, float tolerance, float min_cos) {
+  std::vector<std::uint32_t> on;
+  for (const std::uint32_t i : members)
+    if (std::abs(normal.dot(scene.points[i] - centre)) <= tolerance && std::abs(normal.dot(scene.normals[i])) >= min_cos)
+      on.push_back(i);
+  return on;
+}
+
+/// A region that is not one plane split into the planes it holds. Normals that turn a little
+/// from one point to the next link a part's flat face to a tilted neighbour, or to another
+/// copy's face at another height, across their teeth or a fillet. Each plane is the one
+/// through a member, with its normal, that most members lie on (RANSAC, Fischler & Bolles 1981,
+/// on kPieceTrials members spread over the region), refitted to them by least squares; its
+/// members' connected patches are pieces, and the rest is split again.
+std::vector<std::vector<std::uint32_t>> planarPieces(const Matcher& m, std::vector<std::uint32_t> members, float link,
+                                                     std::size_t fewest, float min_cos, const detail::Joins& joins) {
+  const PreparedScene& scene = m.scene;
+  const float tolerance = m.p.plane_tolerance;
+  fewest = std::max<std::size_t>(fewest, 3);
+  std::vector<std::vector<std::uint32_t>> pieces;
+  for (int k = 0; k < kMostPieces && members.size() >= fewest; ++k) {
+    std::vector<std::uint32_t> best;
+    const std::size_t stride = std::max<std::size_t>(1, members.size() / kPieceTrials);
+    for (std::size_t t = 0; t < members.size(); t += stride) {
+      const std::uint32_t seed = members[t];
+      std::vector<std::uint32_t> on = onPlane(scene, members, scene.points[seed], scene.normals[seed], tolerance, min_cos);
+      if (on.size() > best.size()) best = std::move(on);
+    }
+    if (best.size() < fewest) break;
+    const PlaneFit fit = fitPlane(scene.points, best, scene.normals[best.front()]);
+    best = onPlane(scene, members, fit.centre, fit.normal, tolerance, min_cos);
+    for (auto& patch : regionsOf(scene.points, best, link, joins))
+      if (patch.size() >= fewest) pieces.push_back(std::move(patch));
+    std::vector<std::uint32_t> rest;  // members and best are both sorted
+    std::set_difference(members.begin(), members.end(), best.begin(), best.end(), std::back_inserter(rest));
+    members = std::move(rest);
+  }
+  return pieces;
+}
+
 std::vector<FlatRegion> flatRegions(const Matcher& m, const std::vector<char>& removed, float least_area) {
   const PreparedScene& scene = m.scene;
   std::vector<std::uint32_t> left;  // the points no detection explains
@@ -161,7 +213,13 @@ std::vector<FlatRegion> flatRegions(const Matcher& m, const std::vector<char>& r
   for (auto& members : regionsOf(scene.points, left, kLinkSpacings * spacing, joins)) {
     if (members.size() < std::max<std::size_t>(fewest, 3)) continue;
     FlatRegion region = regionOf(m, std::move(members));
-    if (region.area >= least_area && region.plane.rms <= m.p.plane_tolerance) flat.push_back(std::move(region));
+    if (region.plane.rms <= m.p.plane_tolerance) {
+      if (region.area >= least_area) flat.push_back(std::move(region));
+      continue;
+    }
+    for (auto& piece : planarPieces(m, std::move(region.members), kLinkSpacings * spacing, fewest, min_cos, joins))
+      if (FlatRegion part = regionOf(m, std::move(piece)); part.area >= least_area && part.plane.rms <= m.p.plane_tolerance)
+        flat.push_back(std::move(part));
   }
   return flat;
 }
@@ -215,8 +273,10 @@ std::vector<FlatRegion> splitRegion(const Matcher& m, const FlatRegion& region, 
 }
 
 /// The regions to try: each flat region, or where one is too large for any face but as large as
-/// 2 to kMostCopies copies of one, its pieces for that many copies (splitRegion). A region that
-/// one face could cover whole is not split: its halves would fit a smaller face.
+/// 2 to kMostCopies copies of one, its pieces for each count of copies whose faces could make up
+/// its area (splitRegion): copies of a face seen whole or in part, or of two faces of a part that
+/// lie at one height. A region that one face could cover whole is not split: its halves would fit
+/// a smaller face.
 std::vector<FlatRegion> regionsToTry(const Matcher& m, std::vector<FlatRegion> regions, const std::vector<ModelFace>& faces) {
   float largest = 0;
   for (const ModelFace& face : faces) largest = std::max(largest, face.area);
@@ -224,9 +284,11 @@ std::vector<FlatRegion> regionsToTry(const Matcher& m, std::vector<FlatRegion> r
   for (FlatRegion& region : regions) {
     std::vector<int> splits;
     if (region.area > kMostAreaShare * largest)
-      for (const ModelFace& face : faces)
-        if (const auto copies = static_cast<int>(std::lround(region.area / face.area)); copies >= 2 && copies <= kMostCopies)
-          splits.push_back(copies);
+      for (const ModelFace& face : faces) {
+        const int fewest = std::max(2, static_cast<int>(std::ceil(region.area / (kMostAreaShare * face.area))));
+        const int most = std::min(kMostCopies, static_cast<int>(std::floor(region.area / (kLeastAreaShare * face.area))));
+        for (int copies = fewest; copies <= most; ++copies) splits.push_back(copies);
+      }
     std::sort(splits.begin(), splits.end());
     splits.erase(std::unique(splits.begin(), splits.end()), splits.end());
     for (const int copies : splits)
@@ -317,6 +379,17 @@ std::optional<Pose> unrivalled(const Matcher& m, const ModelShape& shape, const 
   return pose;
 }
 
+/// Whether a laid pose stands out of the scan around it. It rests on one flat face, with no
+/// evidence of the part's shape beyond it: a patch of a larger or gently curved surface fits it
+/// as well. Around a part lying on that face, the scan falls away behind its outline, where the
+/// rest of the part holds the face up; around such a patch, the surface goes on or bends away
+/// slowly. On the simulated bins the laid poses of right copies fall away at 0.6-0.8 of their
+/// judged outline (median), against 0.25 on scans of other objects.
+bool standsOut(const Matcher& m, const Pose& pose) {
+  const OutlineEvidence o = m.evidence.outline(pose, m.scored_model, m.p.verify_tolerance, m.db.model().sample_radius);
+  return o.judged >= kLeastOutline && o.droppedShare() >= kLeastOutlineDrop;
+}
+
 }  // namespace
 
 std::vector<ModelFace> flatFaces(const Points& points, const Points& normals, float sample_radius, float area_per_point,
@@ -364,7 +437,7 @@ void addFaceDetections(const std::vector<ModelFace>& faces, const Matcher& m, co
     const Evidence e = m.scoredEvidence(*pose, h.support);
     h.detection.pose = *pose;
     h.detection.score = e.score();
-    if (!m.stands(*pose, h.detection.score, e, h.support)) continue;
+    if (!m.stands(*pose, h.detection.score, e, h.support) || !standsOut(m, *pose)) continue;
     state.accept(std::move(h), p, shape, m.scene.points);
     if (state.enough) return;
   }

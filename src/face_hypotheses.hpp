@@ -30,8 +30,9 @@ std::vector<ModelFace> flatFaces(const Points& points, const Points& normals, fl
                                  float area_per_point, float min_area, const Vec3* revolution_axis = nullptr);
 
 /// The detections of copies seen by one flat face, from the scene's flat regions that no
-/// detection in `state` explains (not removed), verified as the sub-groups' (min_score, visible
-/// support, outline) and added to `state` with their points removed. Deterministic.
+/// detection in `state` explains (not removed; a region that is not one plane split into the
+/// planes it holds), verified as the sub-groups' (min_score, visible support, outline), standing
+/// out of the scan around them, and added to `state` with their points removed. Deterministic.
 void addFaceDetections(const std::vector<ModelFace>& faces, const Matcher& matcher, const ModelShape& shape,
                        MatchState& state);
 
