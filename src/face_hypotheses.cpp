@@ -59,10 +59,6 @@ constexpr int kMostFineSteps = 12;
 /// left the gears lying flat on the structured-light bins to their wrong clique poses (scores
 /// 0.2-0.35), where the laid poses of the gear's two sides came within a factor of two.
 constexpr float kMostRivalShare = 0.7f;
-/// A laid pose stands where the scan falls away behind at least this share of its outline
-/// (standsOut), judged on at least kLeastOutline steps of it.
-constexpr float kLeastOutlineDrop = 0.4f;
-constexpr int kLeastOutline = 4;
 
 /// The points at `members`' plane fit: centroid, unit normal turned like `towards`, RMS distance.
 struct PlaneFit {
@@ -379,17 +375,6 @@ std::optional<Pose> unrivalled(const Matcher& m, const ModelShape& shape, const 
   return pose;
 }
 
-/// Whether a laid pose stands out of the scan around it. It rests on one flat face, with no
-/// evidence of the part's shape beyond it: a patch of a larger or gently curved surface fits it
-/// as well. Around a part lying on that face, the scan falls away behind its outline, where the
-/// rest of the part holds the face up; around such a patch, the surface goes on or bends away
-/// slowly. On the simulated bins the laid poses of right copies fall away at 0.6-0.8 of their
-/// judged outline (median), against 0.25 on scans of other objects.
-bool standsOut(const Matcher& m, const Pose& pose) {
-  const OutlineEvidence o = m.evidence.outline(pose, m.scored_model, m.p.verify_tolerance, m.db.model().sample_radius);
-  return o.judged >= kLeastOutline && o.droppedShare() >= kLeastOutlineDrop;
-}
-
 }  // namespace
 
 std::vector<ModelFace> flatFaces(const Points& points, const Points& normals, float sample_radius, float area_per_point,
@@ -437,7 +422,7 @@ void addFaceDetections(const std::vector<ModelFace>& faces, const Matcher& m, co
     const Evidence e = m.scoredEvidence(*pose, h.support);
     h.detection.pose = *pose;
     h.detection.score = e.score();
-    if (!m.stands(*pose, h.detection.score, e, h.support) || !standsOut(m, *pose)) continue;
+    if (!m.stands(*pose, h.detection.score, e, h.support, true)) continue;  // laid: it must stand out
     state.accept(std::move(h), p, shape, m.scene.points);
     if (state.enough) return;
   }

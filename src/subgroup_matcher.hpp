@@ -112,12 +112,15 @@ struct Matcher {
   /// Whether a verified pose scoring `score` with evidence `e` and the supporting scan points
   /// `support` stands as a detection: at least min_score, supported on min_visible_support of
   /// what the scan could show, not sunk into the bin (sunk), and standing out of the scan at
-  /// its outline (outlineStandsOut).
-  [[nodiscard]] bool stands(const Pose& pose, float score, const Evidence& e, std::span<const std::uint32_t> support) const;
+  /// its outline (outlineStandsOut; `laid`: a pose laid on one flat face).
+  [[nodiscard]] bool stands(const Pose& pose, float score, const Evidence& e, std::span<const std::uint32_t> support,
+                            bool laid = false) const;
   /// Whether the posed part's outline tells it from the scan around it (SceneEvidence::outline):
   /// the scan's surface does not go on past it at more than max_outline_share of it, and where
   /// the support lies on one plane, the scan falls away behind at least min_outline_drop of it.
-  [[nodiscard]] bool outlineStandsOut(const Pose& pose, std::span<const std::uint32_t> support) const;
+  /// A pose `laid` on one flat face (face_hypotheses.hpp) must also fall away behind 40 % of it,
+  /// whatever those two settings.
+  [[nodiscard]] bool outlineStandsOut(const Pose& pose, std::span<const std::uint32_t> support, bool laid = false) const;
   /// Whether more than max_sunk_share of the posed model lies inside the bin's planes
   /// (SceneEvidence::sinking), where no part can be.
   [[nodiscard]] bool sunk(const Pose& pose) const;
