@@ -82,8 +82,8 @@ struct StageSettings : DetectionParams {
   /// A detection whose visible outline the scan's surface goes on past, along the part's own
   /// tangent planes, at more than this share of its judged steps is dropped
   /// (SceneEvidence::outline: one face laid on a larger surface; 1: no test). Right poses reach
-  /// 0.5 where a copy lies flush against another.
-  float max_outline_share = 0.55f;
+  /// 0.55 where a copy lies flush against another.
+  float max_outline_share = 0.6f;
   /// A detection whose support lies on one plane (the scan shows it by one flat face) must stand
   /// out of what lies behind it: beyond at least this share of its judged outline steps the scan
   /// lies clearly behind the part's tangent plane (OutlineEvidence::dropped; 0: no test). A pose

@@ -150,8 +150,10 @@ struct Sinking {
 /// where the part ends, and the part explains only a piece of it.
 struct OutlineEvidence {
   int judged = 0;     ///< outline steps with a visible part edge and a scan surface beyond it
-  int continued = 0;  ///< ... where that surface lies on the part's tangent plane, continued
-  /// ... where it lies clearly behind that plane (farther than the tolerance): the part stands
+  /// ... where that surface lies on the part's tangent plane, continued (within two tolerances:
+  /// the plane is extrapolated, and both it and the scan are noisy)
+  int continued = 0;
+  /// ... where it lies clearly behind that plane (farther than two tolerances): the part stands
   /// out of what lies behind it there.
   int dropped = 0;
   /// continued / judged (0 when none is judged).
