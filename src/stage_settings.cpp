@@ -25,6 +25,7 @@ StageSettings thesisStages() {
   s.pair_angle_tolerance = 0.0f;
   s.mirror_retries = 0;
   s.alternative_cliques = 0;
+  s.turn_over = false;
   s.face_hypotheses = false;
   s.prescreen = false;
   s.prescreen_retry_steps = 0;

@@ -62,6 +62,10 @@ struct StageSettings : DetectionParams {
   /// beside the first clique's pose, and the better score is the hypothesis; it alone is
   /// verified when the first fails the pre-screen.
   int alternative_cliques = 3;
+  /// A body of revolution's verified pose that does not stand (a cap upside down, its inside
+  /// laid on the copy's top) is tried turned end over end, at 9 heights along its axis; the best
+  /// at the ICP gate, refined, replaces it where it stands and scores alternative_min_score.
+  bool turn_over = true;
   /// ... when it scores at least this at the ICP gate;
   float alternative_min_score = 0.3f;
   /// ... and at least this to be verified alone: the largest clique stays the rule, an other one

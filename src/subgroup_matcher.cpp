@@ -8,6 +8,8 @@
 #include <binpose/pose.hpp>
 
 #include <algorithm>
+#include <cmath>
+#include <optional>
 
 namespace binpose {
 namespace {
@@ -35,6 +37,30 @@ float shareOnOnePlane(const Points& points, std::span<const std::uint32_t> which
   const auto on =
       std::count_if(which.begin(), which.end(), [&](std::uint32_t i) { return plane.distance(points[i]) <= tolerance; });
   return static_cast<float>(on) / static_cast<float>(which.size());
+}
+
+/// Heights along a body of revolution's axis at which a pose is turned end over end.
+constexpr int kTurnHeights = 9;
+
+/// `pose` turned end over end: half turns about lines across the axis, at kTurnHeights heights
+/// spread over the model's extent along it.
+std::vector<Pose> turnedOver(const Pose& pose, const RevolutionAxis& axis, const Points& model) {
+  float lo = INFINITY, hi = -INFINITY;
+  for (const Vec3& q : model) {
+    const float z = (q - axis.point).dot(axis.direction);
+    lo = std::min(lo, z);
+    hi = std::max(hi, z);
+  }
+  const Eigen::Matrix3f half_turn = Eigen::AngleAxisf(static_cast<float>(M_PI), axis.direction.unitOrthogonal()).toRotationMatrix();
+  std::vector<Pose> turned;
+  for (int k = 0; k < kTurnHeights; ++k) {
+    const Vec3 c = axis.point + (lo + (hi - lo) * (static_cast<float>(k) + 0.5f) / kTurnHeights) * axis.direction;
+    Pose flip = Pose::Identity();
+    flip.linear() = half_turn;
+    flip.translation() = c - half_turn * c;
+    turned.push_back(pose * flip);
+  }
+  return turned;
 }
 
 }  // namespace
@@ -281,7 +307,39 @@ void Matcher::screenRefineScore(Slot& s) const {
   }
   s.outcome.evidence = scoredEvidence(det.pose, h.support);
   det.score = s.outcome.evidence.score();
+  if (p.verify && p.turn_over && symmetry.orbits() && !stands(det.pose, det.score, s.outcome.evidence, h.support)) turnOver(s);
   if (other) verifyOther(s, other->pose);  // both refined and scored: the better is taken (GroupSchedule::take)
+}
+
+// Beyond the thesis: a cap seen from above shows a disc and the outside of its wall; its clique
+// often lays the inside of the closed end on that disc, the copy upside down and 30-40 mm off
+// (docs/design.md, Turned copies). Such a pose rarely stands (its body sinks into the floor or
+// what lies beside it), and turned end over end about a line across the axis, at the height that
+// the scan supports best, it is the copy.
+bool Matcher::turnOver(Slot& s) const {
+  Hypothesis& h = s.outcome.hypothesis;
+  Detection& det = h.detection;
+  float best = p.min_score;
+  std::optional<Pose> start;
+  for (const Pose& turned : turnedOver(det.pose, symmetry.orbits()->axis, icp_model.points()))
+    if (const float score = prescore(turned, s.outcome.all_voters); score >= best) {
+      best = score;
+      start = turned;
+    }
+  if (!start) return false;
+  std::vector<Pose> path;
+  IcpParams icp = icpParams(p.icp_iterations);
+  if (p.refound_share > 0) icp.path = &path;
+  const Pose pose = p.refine ? refinePose(*start, icp_model, scan.points, scan_grid, icp) : *start;
+  std::vector<std::uint32_t> support;
+  const Evidence e = scoredEvidence(pose, support);
+  if (e.score() < p.alternative_min_score || !stands(pose, e.score(), e, support)) return false;
+  det.pose = pose;
+  det.score = e.score();
+  s.outcome.evidence = e;
+  h.support = std::move(support);
+  s.outcome.path = std::move(path);
+  return true;
 }
 
 }  // namespace binpose

@@ -150,6 +150,9 @@ struct Matcher {
   void verifyOther(Slot& s, const Pose& start) const;
   /// Pre-screen, ICP and score of the outcome's pose (and of the other cliques' best).
   void screenRefineScore(Slot& s) const;
+  /// A body of revolution's verified pose that does not stand, turned end over end (turnedOver);
+  /// it replaces the outcome's when it stands and scores at least alternative_min_score.
+  bool turnOver(Slot& s) const;
 };
 
 }  // namespace binpose
