@@ -3,6 +3,7 @@
 
 #include "duplicates.hpp"
 #include "face_hypotheses.hpp"
+#include "face_slide.hpp"
 #include "flying_pixels.hpp"
 #include "group_schedule.hpp"
 #include "local_votes.hpp"
@@ -195,6 +196,7 @@ DetectionResult Detector::detect(const PointCloud& input) const {
   if (p.refine && p.verify && !result.detections.empty() && prepared.noise.sigma >= kPolishNoise) {
     const auto t_polish = Clock::now();
     polishAll(result.detections, icp_model_, scan, prepared);
+    if (p.slide_faces) slideAlongFaces(result.detections, matcher);  // what ICP cannot fix: a flat face's place along it
     result.timing.refine_ms += msSince(t_polish);
   }
   countStages(prepared, groups.size(), state, result);

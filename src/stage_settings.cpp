@@ -26,6 +26,7 @@ StageSettings thesisStages() {
   s.mirror_retries = 0;
   s.alternative_cliques = 0;
   s.turn_over = false;
+  s.slide_faces = false;
   s.face_hypotheses = false;
   s.prescreen = false;
   s.prescreen_retry_steps = 0;

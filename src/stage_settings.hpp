@@ -66,6 +66,10 @@ struct StageSettings : DetectionParams {
   /// laid on the copy's top) is tried turned end over end, at 9 heights along its axis; the best
   /// at the ICP gate, refined, replaces it where it stands and scores alternative_min_score.
   bool turn_over = true;
+  /// On a noisy scan (polished detections), a detection whose support lies on one plane is moved
+  /// along that plane while its score grows (src/face_slide.cpp): ICP cannot place a flat face
+  /// along itself.
+  bool slide_faces = true;
   /// ... when it scores at least this at the ICP gate;
   float alternative_min_score = 0.3f;
   /// ... and at least this to be verified alone: the largest clique stays the rule, an other one

@@ -29,16 +29,6 @@ void reset(GroupOutcome& out, bool all_voters) {
   out.vote_ms = out.match_ms = out.refine_ms = 0;
 }
 
-/// The share of points[which] within `tolerance` of their least-squares plane (fitPlane); 0 for
-/// fewer than three or a degenerate fit.
-float shareOnOnePlane(const Points& points, std::span<const std::uint32_t> which, float tolerance) {
-  Plane plane;
-  if (!fitPlane(points, which, plane)) return 0.0f;
-  const auto on =
-      std::count_if(which.begin(), which.end(), [&](std::uint32_t i) { return plane.distance(points[i]) <= tolerance; });
-  return static_cast<float>(on) / static_cast<float>(which.size());
-}
-
 /// Heights along a body of revolution's axis at which a pose is turned end over end.
 constexpr int kTurnHeights = 9;
 
@@ -195,8 +185,6 @@ bool Matcher::stands(const Pose& pose, float score, const Evidence& e, std::span
 bool Matcher::outlineStandsOut(const Pose& pose, std::span<const std::uint32_t> support, bool laid) const {
   constexpr int kMinJudged = 4;         // one or two coincidences do not decide
   constexpr int kMinDropJudged = 8;     // a drop is missing by chance on a short outline
-  constexpr float kOnePlaneShare = 0.8f;  // of the support within kOnePlaneTolerances of one plane
-  constexpr float kOnePlaneTolerances = 2.0f;
   // A pose laid on one flat face (face_hypotheses.hpp) has no evidence of the part's shape
   // beyond that face: a patch of a larger or gently curved surface fits it as well. Around a part
   // lying on that face the scan falls away behind its outline, where the rest of the part holds
@@ -210,7 +198,18 @@ bool Matcher::outlineStandsOut(const Pose& pose, std::span<const std::uint32_t> 
   if (o.judged >= kMinJudged && o.share() > p.max_outline_share) return false;  // a face laid on a larger surface
   if (o.judged < kMinDropJudged || o.droppedShare() >= p.min_outline_drop) return true;
   // Nothing falls away around it: it stands only where the scan shows more of it than one plane.
-  return shareOnOnePlane(scan.points, support, kOnePlaneTolerances * p.verify_tolerance) < kOnePlaneShare;
+  return !faceOf(support);
+}
+
+std::optional<Plane> Matcher::faceOf(std::span<const std::uint32_t> support) const {
+  constexpr float kOnePlaneShare = 0.8f;  // of the support within kOnePlaneTolerances of one plane
+  constexpr float kOnePlaneTolerances = 2.0f;
+  Plane plane;
+  if (!fitPlane(scan.points, support, plane)) return std::nullopt;
+  const float band = kOnePlaneTolerances * p.verify_tolerance;
+  const auto on = std::count_if(support.begin(), support.end(), [&](std::uint32_t i) { return plane.distance(scan.points[i]) <= band; });
+  if (static_cast<float>(on) < kOnePlaneShare * static_cast<float>(support.size())) return std::nullopt;
+  return plane;
 }
 
 bool Matcher::sunk(const Pose& pose) const {

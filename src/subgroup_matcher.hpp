@@ -6,6 +6,7 @@
 
 #include <binpose/detector.hpp>
 #include <binpose/pixel_neighbours.hpp>
+#include <binpose/planes.hpp>
 #include <binpose/refine.hpp>
 #include <binpose/scene.hpp>
 #include <binpose/voting.hpp>
@@ -121,6 +122,10 @@ struct Matcher {
   /// A pose `laid` on one flat face (face_hypotheses.hpp) must also fall away behind 40 % of it,
   /// whatever those two settings.
   [[nodiscard]] bool outlineStandsOut(const Pose& pose, std::span<const std::uint32_t> support, bool laid = false) const;
+  /// The plane that the support's scan points lie on, when 80 % of them or more lie within two
+  /// verification tolerances of their least-squares plane: the scan shows the part by one flat
+  /// face. None otherwise.
+  [[nodiscard]] std::optional<Plane> faceOf(std::span<const std::uint32_t> support) const;
   /// Whether more than max_sunk_share of the posed model lies inside the bin's planes
   /// (SceneEvidence::sinking), where no part can be.
   [[nodiscard]] bool sunk(const Pose& pose) const;
