@@ -6,7 +6,7 @@
 // beyond a right pose's edge the scan falls away, and a pose shifted along the face lays model
 // points over that drop (free space: contradicted) and leaves scan points of the face
 // unexplained. So the pose moves along the face while the score (supported minus contradicted)
-// grows. On the structured-light bins such caps were 4-6 mm off along their disc.
+// grows. On the structured-light bins ICP leaves such caps up to 4-6 mm off along their disc.
 #include "face_slide.hpp"
 
 #include <tbb/parallel_for.h>
