@@ -196,6 +196,7 @@ void GroupSchedule::preferOther(GroupOutcome& o) const {
   o.hypothesis = std::move(other.hypothesis);
   o.evidence = other.evidence;
   o.path = std::move(other.path);
+  o.stands.reset();  // judged for the first hypothesis, not this one
 }
 
 void GroupSchedule::take(GroupOutcome& o) {
@@ -218,7 +219,7 @@ void GroupSchedule::take(GroupOutcome& o) {
   }
   const Detection det = o.hypothesis.detection;
   if (p_.verify && o.all_voters && o.evidence.scoreWithoutGrazing() < p_.retry_min_score) return;  // see retry_min_score
-  if (p_.verify && !matcher_.stands(det.pose, det.score, o.evidence, o.hypothesis.support)) return;
+  if (p_.verify && !(o.stands ? *o.stands : matcher_.stands(det.pose, det.score, o.evidence, o.hypothesis.support))) return;
   s.accept(std::move(o.hypothesis), p_, shape_, matcher_.scene.points);
 }
 

@@ -26,6 +26,7 @@ void reset(GroupOutcome& out, bool all_voters) {
   out.largest_clique = 0;
   out.hypothesis = {};
   out.evidence = {};
+  out.stands.reset();
   out.vote_ms = out.match_ms = out.refine_ms = 0;
 }
 
@@ -80,6 +81,7 @@ bool Matcher::prepare(std::span<const std::uint32_t> group, const std::vector<ch
     out.screened_out = earlier->screened_out;
     out.hypothesis = earlier->hypothesis;
     out.evidence = earlier->evidence;
+    out.stands = earlier->stands;
     out.path = earlier->path;
     out.refound = earlier->refound;
     out.other = earlier->other;
@@ -306,7 +308,10 @@ void Matcher::screenRefineScore(Slot& s) const {
   }
   s.outcome.evidence = scoredEvidence(det.pose, h.support);
   det.score = s.outcome.evidence.score();
-  if (p.verify && p.turn_over && symmetry.orbits() && !stands(det.pose, det.score, s.outcome.evidence, h.support)) turnOver(s);
+  if (p.verify && p.turn_over && symmetry.orbits()) {  // the verdict kept for GroupSchedule::take
+    s.outcome.stands = stands(det.pose, det.score, s.outcome.evidence, h.support);
+    if (!*s.outcome.stands) s.outcome.stands = turnOver(s);
+  }
   if (other) verifyOther(s, other->pose);  // both refined and scored: the better is taken (GroupSchedule::take)
 }
 

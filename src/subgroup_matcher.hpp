@@ -52,6 +52,7 @@ struct GroupOutcome {
   int largest_clique = 0;                           ///< size of the first clique searched (0: none searched)
   Hypothesis hypothesis;                            ///< refined and scored (when the clique gave a pose that passed)
   Evidence evidence;                                ///< the hypothesis's counts (its score, without grazing, visible support)
+  std::optional<bool> stands;                       ///< the hypothesis's Matcher::stands, where verifying judged it (turn_over)
   double vote_ms = 0, match_ms = 0, refine_ms = 0;  ///< the thread's time in each stage
 };
 
@@ -156,7 +157,7 @@ struct Matcher {
   /// Pre-screen, ICP and score of the outcome's pose (and of the other cliques' best).
   void screenRefineScore(Slot& s) const;
   /// A body of revolution's verified pose that does not stand, turned end over end (turnedOver);
-  /// it replaces the outcome's when it stands and scores at least alternative_min_score.
+  /// it replaces the outcome's when it stands and scores at least alternative_min_score (true).
   bool turnOver(Slot& s) const;
 };
 
