@@ -9,6 +9,7 @@
 #include "local_votes.hpp"
 #include "model_shape.hpp"
 #include "part_symmetry.hpp"
+#include "reseat.hpp"
 #include "scan_preparation.hpp"
 #include "stopwatch.hpp"
 #include "subgroup_matcher.hpp"
@@ -185,6 +186,12 @@ DetectionResult Detector::detect(const PointCloud& input) const {
   if (p.verify && p.face_hypotheses && !state.enough) addFaceDetections(*faces_, matcher, *shape_, state);
   shareTimes(schedule.times(), local.setup_ms, msSince(t_match), result.timing);
 
+  if (p.refine && p.verify && p.reseat_weak && prepared.noise.sigma >= kPolishNoise) {
+    const auto t_reseat = Clock::now();  // ICP's minimum a few degrees off, left from turned starts
+    state.hypotheses = distinctObjects(std::move(state.hypotheses), scan.size(), *shape_);
+    reseatWeak(state.hypotheses, matcher, *shape_);
+    result.timing.refine_ms += msSince(t_reseat);
+  }
   const auto t_suppress = Clock::now();  // best first, one detection per object
   if (p.verify)
     result.detections = suppressDuplicates(std::move(state.hypotheses), scan.size(), *shape_);

@@ -5,12 +5,12 @@
 
 namespace binpose {
 
-std::vector<Detection> suppressDuplicates(std::vector<Hypothesis> hypotheses, std::size_t scan_size, const ModelShape& shape) {
+std::vector<Hypothesis> distinctObjects(std::vector<Hypothesis> hypotheses, std::size_t scan_size, const ModelShape& shape) {
   std::stable_sort(hypotheses.begin(), hypotheses.end(),
                    [](const Hypothesis& a, const Hypothesis& b) { return a.detection.score > b.detection.score; });
   std::vector<char> claimed(scan_size, 0);
-  std::vector<Detection> kept;
-  for (const Hypothesis& h : hypotheses) {
+  std::vector<Hypothesis> kept;
+  for (Hypothesis& h : hypotheses) {
     std::size_t taken = 0;
     for (const auto i : h.support) taken += claimed[i];
     if (4 * taken > h.support.size()) continue;  // a quarter explained already: not a new object
@@ -18,11 +18,17 @@ std::vector<Detection> suppressDuplicates(std::vector<Hypothesis> hypotheses, st
     // support; a pose that shares almost none (under a twentieth) explains other points: a
     // neighbour, however close (thin caps stacked rim to rim overlap in that measure).
     if (20 * taken >= h.support.size() &&
-        std::any_of(kept.begin(), kept.end(), [&](const Detection& k) { return shape.mostlyOverlaps(h.detection.pose, k.pose); }))
+        std::any_of(kept.begin(), kept.end(), [&](const Hypothesis& k) { return shape.mostlyOverlaps(h.detection.pose, k.detection.pose); }))
       continue;
     for (const auto i : h.support) claimed[i] = 1;
-    kept.push_back(h.detection);
+    kept.push_back(std::move(h));
   }
+  return kept;
+}
+
+std::vector<Detection> suppressDuplicates(std::vector<Hypothesis> hypotheses, std::size_t scan_size, const ModelShape& shape) {
+  std::vector<Detection> kept;
+  for (Hypothesis& h : distinctObjects(std::move(hypotheses), scan_size, shape)) kept.push_back(h.detection);
   return kept;
 }
 

@@ -27,6 +27,7 @@ StageSettings thesisStages() {
   s.alternative_cliques = 0;
   s.turn_over = false;
   s.slide_faces = false;
+  s.reseat_weak = false;
   s.face_hypotheses = false;
   s.prescreen = false;
   s.prescreen_retry_steps = 0;

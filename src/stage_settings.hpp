@@ -62,6 +62,15 @@ struct StageSettings : DetectionParams {
   /// beside the first clique's pose, and the better score is the hypothesis; it alone is
   /// verified when the first fails the pre-screen.
   int alternative_cliques = 3;
+  /// ... when it scores at least this at the ICP gate;
+  float alternative_min_score = 0.3f;
+  /// ... and at least this to be verified alone: the largest clique stays the rule, an other one
+  /// needs strong support to stand in for it.
+  float alternative_alone_score = 0.5f;
+  /// On a noisy scan (polished detections), a detection scoring under 0.7 is refined again from
+  /// its pose turned by 15 degrees either way about each of the part's axes, and takes the best
+  /// that scores 0.05 more and stands (src/reseat.cpp): ICP settles a few degrees off the part.
+  bool reseat_weak = true;
   /// A body of revolution's verified pose that does not stand (a cap upside down, its inside
   /// laid on the copy's top) is tried turned end over end, at 9 heights along its axis; the best
   /// at the ICP gate, refined, replaces it where it stands and scores alternative_min_score.
@@ -70,11 +79,6 @@ struct StageSettings : DetectionParams {
   /// along that plane while its score grows (src/face_slide.cpp): ICP cannot place a flat face
   /// along itself.
   bool slide_faces = true;
-  /// ... when it scores at least this at the ICP gate;
-  float alternative_min_score = 0.3f;
-  /// ... and at least this to be verified alone: the largest clique stays the rule, an other one
-  /// needs strong support to stand in for it.
-  float alternative_alone_score = 0.5f;
 
   // --- symmetry (set from use_symmetry) -------------------------------------------------------
   bool use_revolution = true;       ///< a body of revolution votes for orbits (symmetry.hpp)

@@ -1,0 +1,18 @@
+#pragma once
+// Beyond the thesis: a weak detection on a noisy scan tried again from poses turned a little.
+#include "model_shape.hpp"
+#include "subgroup_matcher.hpp"
+
+#include <binpose/detector.hpp>
+
+#include <vector>
+
+namespace binpose {
+
+/// Each hypothesis scoring under a weak score is refined again (ICP, 5.2.6) from its pose turned
+/// by a few degrees about each of the part's axes through its centroid, and takes the best of
+/// those poses where it scores clearly more, stands (Matcher::stands) and has not moved off its
+/// place. In parallel, each its own: the result is the same whatever the threads.
+void reseatWeak(std::vector<Hypothesis>& hypotheses, const Matcher& matcher, const ModelShape& shape);
+
+}  // namespace binpose
