@@ -24,7 +24,8 @@ constexpr int kMostRounds = 3;
 /// Each start is the pose turned by this about one of the part's three axes, either way, degrees.
 constexpr float kTurnDegrees = 15.0f;
 /// ICP steps each start takes before the best of them (scored on ICP's model points) is refined
-/// in full: refining all six in full found 2-3 more copies over 48 noisy bins at twice the cost.
+/// in full: refining and scoring all six in full found 6 more copies over the 48 fresh noisy bins
+/// for about a fifth more time on them (docs/design.md).
 constexpr int kShortSteps = 5;
 /// The best start's refined pose replaces the hypothesis when it scores this much more.
 constexpr float kGain = 0.05f;
@@ -59,7 +60,7 @@ std::vector<Pose> turnedStarts(const Pose& pose, const Vec3& centroid, const Rev
 bool reseat(Hypothesis& h, const Matcher& m, const ModelShape& shape, const Vec3& centre) {
   const IcpParams short_icp = m.icpParams(kShortSteps);
   float best_short = -1.0f;
-  Pose start;
+  Pose start = h.detection.pose;
   const RevolutionAxis* axis = m.symmetry.orbits() != nullptr ? &m.symmetry.orbits()->axis : nullptr;
   for (const Pose& turned : turnedStarts(h.detection.pose, shape.centroid(), axis)) {
     const Pose pose = refinePose(turned, m.icp_model, m.scan.points, m.scan_grid, short_icp);
