@@ -196,10 +196,7 @@ void turnsInBand(const float* __restrict bx, const float* __restrict by, const f
 }  // namespace
 
 Pose CyclicSymmetry::turn(int k) const {
-  Pose t = Pose::Identity();
-  t.linear() = Eigen::AngleAxisf(kTwoPi * static_cast<float>(k) / static_cast<float>(order), axis.direction).toRotationMatrix();
-  t.translation() = axis.point - t.linear() * axis.point;
-  return t;
+  return turnAbout(axis.direction, kTwoPi * static_cast<float>(k) / static_cast<float>(order), axis.point);
 }
 
 std::optional<CyclicSymmetry> findCyclicSymmetry(const OrientedModel& model, int max_order, float tolerance) {

@@ -5,6 +5,7 @@
 #include <binpose/geometry.hpp>
 #include <binpose/kdtree.hpp>
 #include <binpose/model.hpp>
+#include <binpose/pose.hpp>
 #include <binpose/sampling.hpp>
 
 #include <algorithm>
@@ -75,12 +76,8 @@ std::vector<Pose> symmetryTransforms(const Symmetries& s, float step_deg) {
   const int steps = std::max(1, static_cast<int>(std::round(360.0f / step_deg)));
   for (const Pose& d : discrete)
     for (const auto& c : s.continuous)
-      for (int k = 0; k < steps; ++k) {
-        Pose spin = Pose::Identity();
-        spin.linear() = Eigen::AngleAxisf(float(2 * M_PI) * float(k) / float(steps), c.axis).toRotationMatrix();
-        spin.translation() = c.offset - spin.linear() * c.offset;  // about the axis through the offset
-        out.push_back(d * spin);
-      }
+      for (int k = 0; k < steps; ++k)  // about the axis through the offset
+        out.push_back(d * turnAbout(c.axis, float(2 * M_PI) * float(k) / float(steps), c.offset));
   return out;
 }
 

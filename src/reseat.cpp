@@ -45,12 +45,7 @@ std::vector<Pose> turnedStarts(const Pose& pose, const Vec3& centroid, const Rev
   std::vector<Pose> starts;
   const float angle = kTurnDegrees * static_cast<float>(M_PI) / 180.0f;
   for (const Vec3& a : axes)
-    for (const float sign : {-1.0f, 1.0f}) {
-      Pose turn = Pose::Identity();
-      turn.linear() = Eigen::AngleAxisf(sign * angle, a).toRotationMatrix();
-      turn.translation() = centroid - turn.linear() * centroid;
-      starts.push_back(pose * turn);
-    }
+    for (const float sign : {-1.0f, 1.0f}) starts.push_back(pose * turnAbout(a, sign * angle, centroid));
   return starts;
 }
 

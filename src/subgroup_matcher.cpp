@@ -42,14 +42,11 @@ std::vector<Pose> turnedOver(const Pose& pose, const RevolutionAxis& axis, const
     lo = std::min(lo, z);
     hi = std::max(hi, z);
   }
-  const Eigen::Matrix3f half_turn = Eigen::AngleAxisf(static_cast<float>(M_PI), axis.direction.unitOrthogonal()).toRotationMatrix();
+  const Vec3 across = axis.direction.unitOrthogonal();
   std::vector<Pose> turned;
   for (int k = 0; k < kTurnHeights; ++k) {
     const Vec3 c = axis.point + (lo + (hi - lo) * (static_cast<float>(k) + 0.5f) / kTurnHeights) * axis.direction;
-    Pose flip = Pose::Identity();
-    flip.linear() = half_turn;
-    flip.translation() = c - half_turn * c;
-    turned.push_back(pose * flip);
+    turned.push_back(pose * turnAbout(across, static_cast<float>(M_PI), c));
   }
   return turned;
 }

@@ -9,6 +9,14 @@ namespace binpose {
 
 using Pose = Eigen::Isometry3f;  ///< p_scene = R p_model + t, mm
 
+/// The turn by `angle` (radians) about the line through `point` along the unit `axis`.
+inline Pose turnAbout(const Vec3& axis, float angle, const Vec3& point) {
+  Pose t = Pose::Identity();
+  t.linear() = Eigen::AngleAxisf(angle, axis).toRotationMatrix();
+  t.translation() = point - t.linear() * point;
+  return t;
+}
+
 struct PoseFit {
   Pose pose = Pose::Identity();
   float rms = 0;    ///< root-mean-square residual of the fit, mm
