@@ -25,23 +25,27 @@ constexpr int kMostMoves = 12;
 /// and then the result's.
 Pose slid(const Matcher& m, Pose pose, const Vec3& normal, float& score) {
   const Vec3 u = normal.unitOrthogonal(), w = normal.cross(u);
-  const Vec3 directions[4] = {u, -u, w, -w};
+  const Vec3 directions[4] = {u, -u, w, -w};  // each next to its opposite (j ^ 1)
   const float tolerance = m.p.verify_tolerance;
-  for (float step = kFirstStep * tolerance; step >= kLeastStep * tolerance; step *= 0.5f)
+  for (float step = kFirstStep * tolerance; step >= kLeastStep * tolerance; step *= 0.5f) {
+    int back = -1;  // the direction back to where the last move came from: its score is lower
     for (int k = 0; k < kMostMoves; ++k) {
       bool better = false;
-      for (const Vec3& d : directions) {
+      for (int j = 0; j < 4; ++j) {
+        if (j == back) continue;
         Pose moved = pose;
-        moved.translation() += step * d;
+        moved.translation() += step * directions[j];
         const float s = m.evidence.evaluate(moved, m.scored_model, tolerance, m.db.model().sample_radius).score();
         if (s > score) {
           score = s;
           pose = moved;
           better = true;
+          back = j ^ 1;
         }
       }
       if (!better) break;
     }
+  }
   return pose;
 }
 
