@@ -8,6 +8,7 @@
 #include "group_schedule.hpp"
 #include "local_votes.hpp"
 #include "model_shape.hpp"
+#include "near_flips.hpp"
 #include "part_symmetry.hpp"
 #include "reseat.hpp"
 #include "scan_preparation.hpp"
@@ -139,6 +140,7 @@ Detector::Detector(const ModelDatabase& db, const StageSettings& settings)
                                              kLeastFaceShare * kLeastFaceShare * model.diameter * model.diameter,
                                              orbits() != nullptr ? &orbits()->axis.direction : nullptr)
                                  : std::vector<ModelFace>{});
+  if (settings_->reseat_weak && settings_->flip_weak) flips_ = nearFlips(icp_model_.points(), icp_model_.normals(), *shape_);
 }
 
 Detector::~Detector() = default;
@@ -187,9 +189,9 @@ DetectionResult Detector::detect(const PointCloud& input) const {
   shareTimes(schedule.times(), local.setup_ms, msSince(t_match), result.timing);
 
   if (p.refine && p.verify && p.reseat_weak && prepared.noise.sigma >= kPolishNoise) {
-    const auto t_reseat = Clock::now();  // ICP's minimum a few degrees off, left from turned starts
+    const auto t_reseat = Clock::now();  // ICP's minimum a few degrees off, or the part turned over
     state.hypotheses = distinctObjects(std::move(state.hypotheses), scan.size(), *shape_);
-    reseatWeak(state.hypotheses, matcher, *shape_);
+    reseatWeak(state.hypotheses, matcher, *shape_, flips_);
     result.timing.refine_ms += msSince(t_reseat);
   }
   const auto t_suppress = Clock::now();  // best first, one detection per object

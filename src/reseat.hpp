@@ -1,5 +1,6 @@
 #pragma once
-// Beyond the thesis: a weak detection on a noisy scan tried again from poses turned a little.
+// Beyond the thesis: a weak detection on a noisy scan tried again from poses turned a little,
+// and from the part turned over.
 #include "model_shape.hpp"
 #include "subgroup_matcher.hpp"
 
@@ -12,7 +13,11 @@ namespace binpose {
 /// Each hypothesis scoring under a weak score is refined again (ICP, 5.2.6) from its pose turned
 /// by a few degrees about each of the part's axes through its centroid, and takes the best of
 /// those poses where it scores clearly more, stands (Matcher::stands) and has not moved off its
-/// place. In parallel, each its own: the result is the same whatever the threads.
-void reseatWeak(std::vector<Hypothesis>& hypotheses, const Matcher& matcher, const ModelShape& shape);
+/// place. Each scoring under a higher score is then tried the same way from its pose turned by
+/// the part's near-symmetric half turns, `flips` (nearFlips), held near the turned start's place
+/// instead, and when it takes one, turned a little again. In parallel, each its own: the result
+/// is the same whatever the threads.
+void reseatWeak(std::vector<Hypothesis>& hypotheses, const Matcher& matcher, const ModelShape& shape,
+                const std::vector<Pose>& flips);
 
 }  // namespace binpose

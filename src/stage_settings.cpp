@@ -28,6 +28,7 @@ StageSettings thesisStages() {
   s.turn_over = false;
   s.slide_faces = false;
   s.reseat_weak = false;
+  s.flip_weak = false;
   s.face_hypotheses = false;
   s.prescreen = false;
   s.prescreen_retry_steps = 0;

@@ -71,6 +71,11 @@ struct StageSettings : DetectionParams {
   /// its pose turned by 15 degrees either way about each of the part's axes, and takes the best
   /// that scores 0.05 more and stands (src/reseat.cpp): ICP settles a few degrees off the part.
   bool reseat_weak = true;
+  /// With reseat_weak, a detection scoring under 0.8 is also tried turned over by the part's
+  /// near-symmetric half turns (src/near_flips.cpp, found when the detector is made), refined,
+  /// and takes the best that scores 0.05 more and stands: a noisy scan often leaves the side
+  /// that tells the part from its turned self unresolved.
+  bool flip_weak = true;
   /// A body of revolution's verified pose that does not stand (a cap upside down, its inside
   /// laid on the copy's top) is tried turned end over end, at 9 heights along its axis; the best
   /// at the ICP gate, refined, replaces it where it stands and scores alternative_min_score.

@@ -86,6 +86,7 @@ class Detector {
   std::unique_ptr<const PartSymmetry> symmetry_;  ///< none, a body of revolution, or n-fold symmetry
   std::unique_ptr<const ModelShape> shape_;  ///< removal, same-pose and overlap tests
   std::unique_ptr<const std::vector<ModelFace>> faces_;  ///< the model's flat faces (face_hypotheses)
+  std::vector<Pose> flips_;  ///< the model's near-symmetric half turns (reseat_weak)
 };
 
 }  // namespace binpose

@@ -1,0 +1,58 @@
+// A part's near-symmetric half turns (near_flips.hpp), against parts whose turns are known.
+#include <binpose/io.hpp>
+#include <binpose/model.hpp>
+#include <binpose/shapes.hpp>
+
+#include "model_shape.hpp"
+#include "near_flips.hpp"
+#include "test_util.hpp"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+
+namespace binpose {
+namespace {
+
+std::vector<Pose> flipsOf(const OrientedModel& model) {
+  const ModelShape shape(model.points, model.diameter, 0.05f * model.diameter, model.points, nullptr, nullptr);
+  return nearFlips(model.points, model.normals, shape);
+}
+
+/// True when `turn` is a half turn (within 3 degrees) about a line along `axis` (within
+/// `degrees`) through `point` (within 1 mm).
+bool halfTurnAbout(const Pose& turn, const Vec3& axis, const Vec3& point, float degrees) {
+  const Eigen::AngleAxisf aa(turn.linear());
+  const float angle_off = std::abs(aa.angle() - static_cast<float>(M_PI)) * 180.0f / static_cast<float>(M_PI);
+  const float axis_off = std::acos(std::min(1.0f, std::abs(aa.axis().dot(axis.normalized())))) * 180.0f / static_cast<float>(M_PI);
+  return angle_off < 3.0f && axis_off < degrees && (turn * point - point).norm() < 1.0f;
+}
+
+// The built-in box, 60 x 40 x 20 mm about its centre, is its own image under a half turn about
+// each of its three axes: those three, and no other.
+TEST(NearFlips, ABoxTurnsOntoItselfAboutItsThreeAxes) {
+  const OrientedModel box = prepareModel(builtinPart("box"), ModelParams{});
+  const std::vector<Pose> flips = flipsOf(box);
+  ASSERT_EQ(flips.size(), 3u);
+  for (int axis = 0; axis < 3; ++axis)
+    EXPECT_TRUE(std::any_of(flips.begin(), flips.end(), [&](const Pose& f) { return halfTurnAbout(f, Vec3::Unit(axis), Vec3::Zero(), 3.0f); }))
+        << "no half turn about axis " << axis;
+}
+
+// IPD obj 1 is nearly its own image under a half turn about the diagonal (x - z)/sqrt(2) of its
+// frame: the turn that the noisy bins' detections of it are found turned over by.
+TEST(NearFlips, IpdPartOneTurnsOntoItselfAboutItsDiagonal) {
+  REQUIRE_DATA("ipd_parts/models/obj_000001.ply");
+  const OrientedModel part = prepareModel(readMesh(test::dataPath("ipd_parts/models/obj_000001.ply")), ModelParams{});
+  const std::vector<Pose> flips = flipsOf(part);
+  ASSERT_FALSE(flips.empty());
+  const Eigen::AngleAxisf best(flips.front().linear());
+  const float off = std::acos(std::min(1.0f, std::abs(best.axis().dot(Vec3(1, 0, -1).normalized())))) * 180.0f / static_cast<float>(M_PI);
+  EXPECT_LT(off, 10.0f);
+  EXPECT_NEAR(best.angle(), static_cast<float>(M_PI), 0.1f);
+}
+
+}  // namespace
+}  // namespace binpose
