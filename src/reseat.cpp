@@ -63,6 +63,11 @@ std::vector<Pose> turnedStarts(const Pose& pose, const Vec3& centroid, const Rev
   return starts;
 }
 
+/// A pose's score on ICP's model points at the verification tolerance: how the starts compare.
+float shortScore(const Pose& pose, const Matcher& m) {
+  return m.evidence.evaluate(pose, m.icp_model, m.p.verify_tolerance, 0.0f).score();
+}
+
 /// The best of `starts` after kShortSteps of ICP each, scored on ICP's model points: its index
 /// and the pose it reached; its score into `score` when given.
 std::pair<std::size_t, Pose> bestAfterShortIcp(const std::vector<Pose>& starts, const Matcher& m, float* score = nullptr) {
@@ -71,7 +76,7 @@ std::pair<std::size_t, Pose> bestAfterShortIcp(const std::vector<Pose>& starts, 
   std::pair<std::size_t, Pose> best{0, starts.front()};
   for (std::size_t i = 0; i < starts.size(); ++i) {
     const Pose pose = refinePose(starts[i], m.icp_model, m.scan.points, m.scan_grid, short_icp);
-    if (const float s = m.evidence.evaluate(pose, m.icp_model, m.p.verify_tolerance, 0.0f).score(); s > best_score) {
+    if (const float s = shortScore(pose, m); s > best_score) {
       best_score = s;
       best = {i, pose};
     }
@@ -120,7 +125,7 @@ std::vector<Pose> flippedStarts(const Pose& pose, const Matcher& m, const ModelS
         Pose shifted = flip;
         shifted.translation() += step * (static_cast<float>(i) * u + static_cast<float>(j) * w);
         const Pose candidate = pose * shifted;
-        if (const float s = m.evidence.evaluate(candidate, m.icp_model, m.p.icp_max_distance, 0.0f).score(); s > best) {
+        if (const float s = m.prescore(candidate, false); s > best) {
           best = s;
           start = candidate;
         }
@@ -139,7 +144,7 @@ bool flipOver(Hypothesis& h, const Matcher& m, const ModelShape& shape, const st
   const std::vector<Pose> starts = flippedStarts(h.detection.pose, m, shape, flips);
   float best = 0;
   const auto [i, pose] = bestAfterShortIcp(starts, m, &best);
-  if (best <= m.evidence.evaluate(h.detection.pose, m.icp_model, m.p.verify_tolerance, 0.0f).score()) return false;
+  if (best <= shortScore(h.detection.pose, m)) return false;
   return takeIfBetter(h, m, shape, pose, starts[i] * shape.centroid());
 }
 

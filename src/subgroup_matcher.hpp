@@ -130,6 +130,8 @@ struct Matcher {
   /// Whether more than max_sunk_share of the posed model lies inside the bin's planes
   /// (SceneEvidence::sinking), where no part can be.
   [[nodiscard]] bool sunk(const Pose& pose) const;
+  /// The pose's score at the ICP gate on ICP's points (a second pass's: without grazing points).
+  [[nodiscard]] float prescore(const Pose& pose, bool second_pass) const;
 
  private:
   /// The candidate correspondences of the outcome's members; false when a second pass has nothing new.
@@ -145,8 +147,6 @@ struct Matcher {
   /// The poses of the next alternative_cliques largest cliques, each without the pairs of the
   /// one before (`taken`, isolated in `graph`), into the outcome's other_poses.
   void addAlternativeCliques(Slot& s, Graph& graph, std::vector<int> taken) const;
-  /// The pose's score at the ICP gate on ICP's points (a second pass's: without grazing points).
-  float prescore(const Pose& pose, bool second_pass) const;
   /// The scan decides between a clique's poses, and screens out one far from it; false when screened out.
   bool prescreen(Slot& s) const;
   /// Of the other cliques' poses, the one scoring best at the ICP gate, when it scores at least
