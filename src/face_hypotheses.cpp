@@ -53,12 +53,19 @@ constexpr std::size_t kShortlist = 4;
 constexpr float kFineDegrees = 1.0f;
 constexpr float kFineShiftTolerances = 0.5f;
 constexpr int kMostFineSteps = 12;
-/// The scan must support the best laid pose at least 1/0.7 times as well as any other face or turn
-/// (one the part's symmetry does not make the same pose): a block's square faces, a plate's two
-/// sides look alike from one side, and the part behind the face is hidden. Twice as well (0.5)
-/// left the gears lying flat on the structured-light bins to their wrong clique poses (scores
-/// 0.2-0.35), where the laid poses of the gear's two sides came within a factor of two.
+/// Rivals: other faces or turns (ones the part's symmetry does not make the same pose) that the
+/// scan supports at least this share as well as the best laid pose, before refinement: a block's
+/// square faces, a plate's two sides look alike from one side, and the part behind the face is
+/// hidden. Twice as well (0.5) left the gears lying flat on the structured-light bins to their
+/// wrong clique poses (scores 0.2-0.35), where the laid poses of the gear's two sides came within
+/// a factor of two.
 constexpr float kMostRivalShare = 0.7f;
+/// Each rival is refined as the best is, and the pose that then scores most is kept unless another
+/// scores this share of it: a tie that the scan cannot settle. Laid poses start a few degrees and
+/// millimetres off, and the face's outline alone ranks them little better than chance: an L-shaped
+/// sheet-metal part (IPD obj 0, 1) seen by one plate scores 0.73-0.95 at its pose and 0.41-0.88
+/// turned about that plate's normal, refined, while their coarse support comes within 0.7.
+constexpr float kTieShare = 0.95f;
 
 /// The points at `members`' plane fit: centroid, unit normal turned like `towards`, RMS distance.
 struct PlaneFit {
@@ -359,20 +366,37 @@ std::vector<Laid> shortlist(const Matcher& m, const PreparedModel& coarse, const
   return kept;
 }
 
-/// The shortlist's best pose refined, or none when the scan supports another face, or the same
-/// turned otherwise (not by the part's symmetry), more than kMostRivalShare as well as it: a
-/// block's square faces, a plate's two sides look alike from one side, and the part behind is hidden.
+/// A laid pose refined by ICP, with its score.
+struct Refined {
+  Pose pose;
+  float score = -1;
+};
+
+Refined refined(const Matcher& m, const Pose& start) {
+  const Pose pose = refinePose(start, m.icp_model, m.scan.points, m.scan_grid, m.icpParams(m.p.icp_iterations));
+  std::vector<std::uint32_t> support;
+  return {pose, m.scoredEvidence(pose, support).score()};
+}
+
+/// The shortlist's best pose refined. Where the scan supports another face, or the same turned
+/// otherwise (not by the part's symmetry), kMostRivalShare as well, each such rival is moved
+/// finer and refined too, and the best scoring pose is kept unless another comes within
+/// kTieShare of it. Without refinement a rival leaves the region, as no score can settle it.
 std::optional<Pose> unrivalled(const Matcher& m, const ModelShape& shape, const PreparedModel& judged, const PlaneFit& plane,
                                const std::vector<Laid>& laid) {
   if (laid.empty()) return std::nullopt;
   const Laid best = finer(m, judged, plane, laid.front());
   if (best.support < m.p.min_score) return std::nullopt;
-  const float limit = kMostRivalShare * best.support;
+  std::vector<Laid> rivals;
   for (const Laid& l : laid)
-    if (l.support > limit && !shape.samePose(l.pose, best.pose)) return std::nullopt;
-  Pose pose = best.pose;
-  if (m.p.refine) pose = refinePose(pose, m.icp_model, m.scan.points, m.scan_grid, m.icpParams(m.p.icp_iterations));
-  return pose;
+    if (l.support > kMostRivalShare * best.support && !shape.samePose(l.pose, best.pose)) rivals.push_back(l);
+  if (!m.p.refine) return rivals.empty() ? std::optional<Pose>(best.pose) : std::nullopt;
+  std::vector<Refined> poses{refined(m, best.pose)};
+  for (const Laid& rival : rivals) poses.push_back(refined(m, finer(m, judged, plane, rival).pose));
+  const auto winner = std::max_element(poses.begin(), poses.end(), [](const Refined& a, const Refined& b) { return a.score < b.score; });
+  for (const Refined& other : poses)
+    if (&other != &*winner && other.score >= kTieShare * winner->score && !shape.samePose(other.pose, winner->pose)) return std::nullopt;
+  return winner->pose;
 }
 
 }  // namespace
