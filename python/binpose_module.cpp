@@ -113,6 +113,7 @@ struct PyResult {
   std::vector<PyDetection> detections;
   py::dict timing_ms;
   float noise_mm = 0;
+  float least_score = 0;
   std::size_t scene_points = 0;
   std::size_t flying_points = 0;
 };
@@ -133,6 +134,7 @@ PyResult toPython(const DetectionResult& r) {
   out.timing_ms["refine"] = r.timing.refine_ms;
   out.timing_ms["total"] = r.timing.total_ms;
   out.noise_mm = r.noise_mm;
+  out.least_score = r.least_score;
   out.scene_points = r.scene_points;
   out.flying_points = r.flying_points;
   return out;
@@ -291,6 +293,7 @@ PYBIND11_MODULE(binpose, m) {
       .def_readonly("detections", &PyResult::detections)
       .def_readonly("timing_ms", &PyResult::timing_ms, "preprocess, vote, match, refine, total (ms)")
       .def_readonly("noise_mm", &PyResult::noise_mm, "the scan's noise measured on it, mm (1 sigma)")
+      .def_readonly("least_score", &PyResult::least_score, "the least score reported: min_score, raised on a rough scan")
       .def_readonly("scene_points", &PyResult::scene_points)
       .def_readonly("flying_points", &PyResult::flying_points,
                     "the scan's points dropped as flying pixels, between two surfaces at a depth edge");

@@ -97,6 +97,7 @@ void countStages(const PreparedScan& prepared, std::size_t groups, const MatchSt
   result.sampled_points = prepared.sampled_points;
   result.noise_mm = prepared.noise.sigma;
   result.k_normals = prepared.params.k_normals;
+  result.least_score = std::max(prepared.params.min_score, prepared.params.report_score);
   result.plane_points = prepared.plane_points;
   result.subgroups = groups;
   result.subgroups_run = state.subgroups_run;
@@ -208,6 +209,7 @@ DetectionResult Detector::detect(const PointCloud& input) const {
     if (p.slide_faces) slideAlongFaces(result.detections, matcher);  // what ICP cannot fix: a flat face's place along it
     result.timing.refine_ms += msSince(t_polish);
   }
+  std::erase_if(result.detections, [&](const Detection& d) { return d.score < p.report_score; });  // rough scans (noise.cpp)
   countStages(prepared, groups.size(), state, result);
   result.timing.total_ms = msSince(t0);
   return result;

@@ -108,6 +108,7 @@ void validateStages(const StageSettings& s) {
   share(s.max_outline_share, "max_outline_share");
   share(s.min_outline_drop, "min_outline_drop");
   share(s.max_sunk_share, "max_sunk_share");
+  share(s.report_score, "report_score");
   range(s.retry_min_clique, 0, 1 << 20, "retry_min_clique");
   if (!(s.grazing_angle > 0 && s.grazing_angle <= 90))
     throw Error(fmt::format("grazing_angle must lie in (0, 90] degrees, got {}", s.grazing_angle));

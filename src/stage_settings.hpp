@@ -111,6 +111,10 @@ struct StageSettings : DetectionParams {
   /// a table that the scan shows around it (SceneEvidence::sinking) is dropped: no part can lie
   /// there, though the part above hides the floor from the free-space test (1: no test).
   float max_sunk_share = 0.05f;
+  /// Detections scoring under this after refinement are not reported (0: min_score alone decides).
+  /// Raised on rough scans (adapt_to_noise, noise.cpp), where wrong and turned-over poses score
+  /// low and right ones seldom do; min_score stays the gate within the loop.
+  float report_score = 0.0f;
   /// After the sub-groups, the scene's flat regions that no detection explains, each about as large
   /// as a flat face of the model, are tried as that face (face_hypotheses.hpp): a copy that shows
   /// one flat face only gives no clique.

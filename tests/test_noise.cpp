@@ -71,6 +71,7 @@ TEST(Noise, OnlyANoisyScanRaisesTheValues) {
   EXPECT_EQ(clean.verify_tolerance, p.verify_tolerance);
   EXPECT_EQ(clean.plane_tolerance, p.plane_tolerance);
   EXPECT_EQ(clean.revolution_angle_tolerance, p.revolution_angle_tolerance);
+  EXPECT_EQ(clean.report_score, p.report_score);
   const StageSettings mild = adaptedToNoise(p, {0.24f, 2.0f, 256});  // tilt 0.12: k raised, angles kept
   EXPECT_GT(mild.k_normals, p.k_normals);
   EXPECT_EQ(mild.revolution_angle_tolerance, p.revolution_angle_tolerance);
@@ -81,6 +82,11 @@ TEST(Noise, OnlyANoisyScanRaisesTheValues) {
   EXPECT_GT(noisy.e_gmax, 2.0f);
   EXPECT_GT(noisy.verify_tolerance, p.verify_tolerance);
   EXPECT_GT(noisy.plane_tolerance, 2.0f);
+  EXPECT_FLOAT_EQ(noisy.report_score, 0.5f);  // tilt 0.5: only detections scoring 0.5 reported
+  EXPECT_EQ(adaptedToNoise(p, {0.54f, 2.0f, 256}).report_score, p.report_score);  // tilt 0.27: a real Kinect frame's
+  const float midway = adaptedToNoise(p, {0.8f, 2.0f, 256}).report_score;  // tilt 0.4
+  EXPECT_GT(midway, p.min_score);
+  EXPECT_LT(midway, 0.5f);
   StageSettings loose = p;
   loose.e_gmax = 10.0f;
   EXPECT_EQ(adaptedToNoise(loose, {1.0f, 2.0f, 256}).e_gmax, 10.0f);
