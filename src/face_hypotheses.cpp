@@ -378,12 +378,13 @@ Refined refined(const Matcher& m, const Pose& start) {
   return {pose, m.scoredEvidence(pose, support).score()};
 }
 
-/// The shortlist's best pose refined. Where the scan supports another face, or the same turned
-/// otherwise (not by the part's symmetry), kMostRivalShare as well, each such rival is moved
-/// finer and refined too, and the best scoring pose is kept unless another comes within
-/// kTieShare of it. Without refinement a rival leaves the region, as no score can settle it.
-std::optional<Pose> unrivalled(const Matcher& m, const ModelShape& shape, const PreparedModel& judged, const PlaneFit& plane,
-                               const std::vector<Laid>& laid) {
+/// The laid pose the scan settles on: the shortlist's best refined. Where the scan supports
+/// another face, or the same turned otherwise (not by the part's symmetry), kMostRivalShare as
+/// well, each such rival is moved finer and refined too, and the best scoring pose is kept unless
+/// another comes within kTieShare of it. Without refinement a rival leaves the region, as no
+/// score can settle it.
+std::optional<Pose> settled(const Matcher& m, const ModelShape& shape, const PreparedModel& judged, const PlaneFit& plane,
+                            const std::vector<Laid>& laid) {
   if (laid.empty()) return std::nullopt;
   const Laid best = finer(m, judged, plane, laid.front());
   if (best.support < m.p.min_score) return std::nullopt;
@@ -395,7 +396,8 @@ std::optional<Pose> unrivalled(const Matcher& m, const ModelShape& shape, const 
   for (const Laid& rival : rivals) poses.push_back(refined(m, finer(m, judged, plane, rival).pose));
   const auto winner = std::max_element(poses.begin(), poses.end(), [](const Refined& a, const Refined& b) { return a.score < b.score; });
   for (const Refined& other : poses)
-    if (&other != &*winner && other.score >= kTieShare * winner->score && !shape.samePose(other.pose, winner->pose)) return std::nullopt;
+    if (&other != &*winner && other.score >= kTieShare * winner->score && !shape.samePose(other.pose, winner->pose))
+      return std::nullopt;  // a tie
   return winner->pose;
 }
 
@@ -440,7 +442,7 @@ void addFaceDetections(const std::vector<ModelFace>& faces, const Matcher& m, co
   for (const FlatRegion& region : regions) {
     const auto gone = std::count_if(region.members.begin(), region.members.end(), [&](std::uint32_t i) { return state.removed[i] != 0; });
     if (2 * static_cast<std::size_t>(gone) > region.members.size()) continue;  // a detection before explains it
-    const std::optional<Pose> pose = unrivalled(m, shape, judged, region.plane, shortlist(m, coarse, judged, faces, region));
+    const std::optional<Pose> pose = settled(m, shape, judged, region.plane, shortlist(m, coarse, judged, faces, region));
     if (!pose || state.refoundAt(*pose, shape, p.refound_share)) continue;
     Hypothesis h;
     const Evidence e = m.scoredEvidence(*pose, h.support);
