@@ -97,7 +97,8 @@ void countStages(const PreparedScan& prepared, std::size_t groups, const MatchSt
   result.sampled_points = prepared.sampled_points;
   result.noise_mm = prepared.noise.sigma;
   result.k_normals = prepared.params.k_normals;
-  result.least_score = std::max(prepared.params.min_score, prepared.params.report_score);
+  const StageSettings& p = prepared.params;
+  result.least_score = p.verify ? std::max(p.min_score, p.report_score) : 0.0f;  // no score without verification
   result.plane_points = prepared.plane_points;
   result.subgroups = groups;
   result.subgroups_run = state.subgroups_run;
