@@ -210,7 +210,8 @@ DetectionResult Detector::detect(const PointCloud& input) const {
     if (p.slide_faces) slideAlongFaces(result.detections, matcher);  // what ICP cannot fix: a flat face's place along it
     result.timing.refine_ms += msSince(t_polish);
   }
-  std::erase_if(result.detections, [&](const Detection& d) { return d.score < p.report_score; });  // rough scans (noise.cpp)
+  if (p.verify)  // rough scans (noise.cpp); an unverified pose has no score to judge
+    std::erase_if(result.detections, [&](const Detection& d) { return d.score < p.report_score; });
   countStages(prepared, groups.size(), state, result);
   result.timing.total_ms = msSince(t0);
   return result;

@@ -395,7 +395,8 @@ TEST(RealSensors, BracketsSeenByOnePlateAreFoundOnIndustrialScan) {
 // report_score: on a time-of-flight scan (tilt 0.5: 3 mm of noise and more per pixel at 800 mm)
 // the wrong and turned-over poses score low and the right ones seldom do. IPD obj 8 in 16 copies
 // (`binpose simulate --sensor tof --distance 800 --seed 7104`): with every detection over
-// min_score reported, 14 lie on their copy and 4 off it; reported from 0.5, 14 and 1.
+// min_score reported, 14 lie on their copy and 4 off it; reported from 0.5, 14 and 1. Without
+// verification nothing is dropped.
 TEST(RealSensors, LowScoringPosesAreNotReportedOnTimeOfFlight) {
   REQUIRE_DATA("ipd_parts/models/obj_000008.ply");
   const IpdBin b = ipdBin("obj_000008.ply", 7104, sensorAt800(SensorKind::TimeOfFlight));
@@ -405,4 +406,10 @@ TEST(RealSensors, LowScoringPosesAreNotReportedOnTimeOfFlight) {
   std::printf("%d right, %d off\n", right, off);
   EXPECT_GE(right, 14);
   EXPECT_LE(off, 1);
+  // Without verification no pose has a score to judge: every clique's pose is reported.
+  StageSettings unverified = settings;
+  unverified.verify = false;
+  const DetectionResult all = Detector(b.db, unverified).detect(b.bin.cloud);
+  EXPECT_EQ(all.detections.size(), all.hypotheses);
+  EXPECT_EQ(all.least_score, 0.0f);
 }
