@@ -366,16 +366,22 @@ std::vector<Laid> shortlist(const Matcher& m, const PreparedModel& coarse, const
   return kept;
 }
 
-/// A laid pose refined by ICP, with its score.
-struct Refined {
+/// A laid pose with its final score's evidence and the scan points supporting it.
+struct Scored {
   Pose pose;
-  float score = -1;
+  Evidence evidence;
+  std::vector<std::uint32_t> support;
 };
 
-Refined refined(const Matcher& m, const Pose& start) {
-  const Pose pose = refinePose(start, m.icp_model, m.scan.points, m.scan_grid, m.icpParams(m.p.icp_iterations));
-  std::vector<std::uint32_t> support;
-  return {pose, m.scoredEvidence(pose, support).score()};
+Scored scored(const Matcher& m, const Pose& pose) {
+  Scored s{pose, {}, {}};
+  s.evidence = m.scoredEvidence(pose, s.support);
+  return s;
+}
+
+/// `start` refined by ICP, scored.
+Scored refined(const Matcher& m, const Pose& start) {
+  return scored(m, refinePose(start, m.icp_model, m.scan.points, m.scan_grid, m.icpParams(m.p.icp_iterations)));
 }
 
 /// The laid pose the scan settles on: the shortlist's best refined. Where the scan supports
@@ -383,22 +389,25 @@ Refined refined(const Matcher& m, const Pose& start) {
 /// well, each such rival is moved finer and refined too, and the best scoring pose is kept unless
 /// another comes within kTieShare of it. Without refinement a rival leaves the region, as no
 /// score can settle it.
-std::optional<Pose> settled(const Matcher& m, const ModelShape& shape, const PreparedModel& judged, const PlaneFit& plane,
-                            const std::vector<Laid>& laid) {
+std::optional<Scored> settled(const Matcher& m, const ModelShape& shape, const PreparedModel& judged, const PlaneFit& plane,
+                              const std::vector<Laid>& laid) {
   if (laid.empty()) return std::nullopt;
   const Laid best = finer(m, judged, plane, laid.front());
   if (best.support < m.p.min_score) return std::nullopt;
   std::vector<Laid> rivals;
   for (const Laid& l : laid)
     if (l.support > kMostRivalShare * best.support && !shape.samePose(l.pose, best.pose)) rivals.push_back(l);
-  if (!m.p.refine) return rivals.empty() ? std::optional<Pose>(best.pose) : std::nullopt;
-  std::vector<Refined> poses{refined(m, best.pose)};
+  if (!m.p.refine) return rivals.empty() ? std::optional<Scored>(scored(m, best.pose)) : std::nullopt;
+  std::vector<Scored> poses;
+  poses.push_back(refined(m, best.pose));
   for (const Laid& rival : rivals) poses.push_back(refined(m, finer(m, judged, plane, rival).pose));
-  const auto winner = std::max_element(poses.begin(), poses.end(), [](const Refined& a, const Refined& b) { return a.score < b.score; });
-  for (const Refined& other : poses)
-    if (&other != &*winner && other.score >= kTieShare * winner->score && !shape.samePose(other.pose, winner->pose))
+  const auto by_score = [](const Scored& a, const Scored& b) { return a.evidence.score() < b.evidence.score(); };
+  const auto winner = std::max_element(poses.begin(), poses.end(), by_score);
+  for (const Scored& other : poses)
+    if (&other != &*winner && other.evidence.score() >= kTieShare * winner->evidence.score() &&
+        !shape.samePose(other.pose, winner->pose))
       return std::nullopt;  // a tie
-  return winner->pose;
+  return std::move(*winner);
 }
 
 }  // namespace
@@ -442,13 +451,13 @@ void addFaceDetections(const std::vector<ModelFace>& faces, const Matcher& m, co
   for (const FlatRegion& region : regions) {
     const auto gone = std::count_if(region.members.begin(), region.members.end(), [&](std::uint32_t i) { return state.removed[i] != 0; });
     if (2 * static_cast<std::size_t>(gone) > region.members.size()) continue;  // a detection before explains it
-    const std::optional<Pose> pose = settled(m, shape, judged, region.plane, shortlist(m, coarse, judged, faces, region));
-    if (!pose || state.refoundAt(*pose, shape, p.refound_share)) continue;
+    std::optional<Scored> laid = settled(m, shape, judged, region.plane, shortlist(m, coarse, judged, faces, region));
+    if (!laid || state.refoundAt(laid->pose, shape, p.refound_share)) continue;
     Hypothesis h;
-    const Evidence e = m.scoredEvidence(*pose, h.support);
-    h.detection.pose = *pose;
-    h.detection.score = e.score();
-    if (!m.stands(*pose, h.detection.score, e, h.support, true)) continue;  // laid: it must stand out
+    h.detection.pose = laid->pose;
+    h.detection.score = laid->evidence.score();
+    h.support = std::move(laid->support);
+    if (!m.stands(h.detection.pose, h.detection.score, laid->evidence, h.support, true)) continue;  // laid: it must stand out
     state.accept(std::move(h), p, shape, m.scene.points);
     if (state.enough) return;
   }
