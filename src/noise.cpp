@@ -34,11 +34,11 @@ constexpr float kRoughTilt = 2.0f * kSoundTilt;
 constexpr float kRoughRevolutionTolerance = 20.0f;
 /// From kReportTilt to kHighReportTilt the reported detections' least score rises from min_score
 /// to kRoughReportScore. On such scans the right poses score high and the wrong and turned-over
-/// ones low: over the 72 fresh bins' time-of-flight scans (tilt 0.50) 6 of 217 right detections
-/// score under 0.5 against 41 of 76 others, and the simulated structured-light scans (0.43, least
-/// score 0.38) 5 right against 8 others. On clean, industrial and real Kinect-class scans (the
-/// IC-BIN frames 0.26-0.27, PCL's milk 0.14, SICK 0.18) partly hidden copies score 0.2-0.4 and
-/// right, and nothing changes.
+/// ones low: over the fresh and cached bins' time-of-flight scans (tilt 0.50) 6 of 217 right
+/// detections score under 0.5 against 41 of 76 others, and on the simulated structured-light scans
+/// (0.43, least score 0.38) 5 of 293 right under 0.4 against 9 of 42 others. On clean,
+/// industrial and real Kinect-class scans (the IC-BIN frames 0.26-0.27, PCL's milk 0.14, SICK
+/// 0.18) partly hidden copies score 0.2-0.4 and right, and nothing changes.
 constexpr float kReportTilt = 0.3f;
 constexpr float kHighReportTilt = 0.5f;
 constexpr float kRoughReportScore = 0.5f;
