@@ -253,7 +253,8 @@ PlyData readPly(const std::string& path, double scale) {
       have_vertices = true;
     } else if (e.name == "face" && have_vertices) {
       readFaces(path, e, body, data);
-    } else {  // any other element: read past it
+    } else if (!e.properties.empty()) {  // any other element: read past it (one without
+                                         // properties holds no data, whatever its count)
       for (std::size_t i = 0; i < e.count; ++i)
         for (const Property& prop : e.properties) {
           const std::size_t n = prop.is_list ? body.listLength(prop.count_type, e.name.c_str()) : 1;

@@ -134,6 +134,18 @@ TEST(HostileInput, PlyWithTwoVertexElementsOrBadCountsIsRefused) {
   EXPECT_EQ(mesh.faces[0], Eigen::Vector3i(2, 0, 1));
 }
 
+// Elements without properties hold no data, so no body length bounds their counts: they are
+// passed over without a loop over their claimed count (which hung the reader for seconds).
+TEST(HostileInput, PlyElementsWithoutPropertiesAreSkipped) {
+  std::string header = "ply\nformat ascii 1.0\n";
+  for (int i = 0; i < 64; ++i) header += "element empty" + std::to_string(i) + " 2147483647\n";
+  const std::string path = fileWith("empty.ply", header + "element vertex 1\nproperty float x\nproperty float y\n"
+                                                          "property float z\nend_header\n1 2 3\n");
+  const PointCloud cloud = readPlyCloud(path, 1.0);
+  ASSERT_EQ(cloud.points.size(), 1u);
+  EXPECT_EQ(cloud.points[0], Vec3(1, 2, 3));
+}
+
 TEST(HostileInput, CameraJsonNestedDeeplyOrHugeIsRefused) {
   std::string deep;
   for (int i = 0; i < 100000; ++i) deep += "{\"a\":";
