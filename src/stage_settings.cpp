@@ -80,6 +80,7 @@ PlaneParams planeParams(const StageSettings& s) {
   PlaneParams planes;
   planes.min_area = s.plane_min_area;
   planes.tolerance = s.plane_tolerance;
+  planes.max_angle = s.plane_max_angle;
   planes.link = kPlaneLinkSpacings / std::sqrt(s.rho_sub);
   planes.hole = s.plane_hole;
   planes.seed = s.seed;
@@ -110,6 +111,8 @@ void validateStages(const StageSettings& s) {
   share(s.max_sunk_share, "max_sunk_share");
   share(s.report_score, "report_score");
   range(s.retry_min_clique, 0, 1 << 20, "retry_min_clique");
+  if (!(s.plane_max_angle > 0 && s.plane_max_angle <= 0.5f * static_cast<float>(M_PI)))
+    throw Error(fmt::format("plane_max_angle must lie in (0, pi/2] radians, got {}", s.plane_max_angle));
   if (!(s.grazing_angle > 0 && s.grazing_angle <= 90))
     throw Error(fmt::format("grazing_angle must lie in (0, 90] degrees, got {}", s.grazing_angle));
   share(s.tried_share, "tried_share");

@@ -15,7 +15,8 @@ struct StageSettings : DetectionParams {
   // --- scene preparation (5.2.1-5.2.2) ------------------------------------------------------
   Subsampling subsampling = Subsampling::Voxel;
   /// Measure a depth image's noise and raise what depends on it for a noisy one (k_normals,
-  /// e_gmax, plane_tolerance, verify_tolerance, revolution_angle_tolerance; noise.cpp).
+  /// e_gmax, plane_tolerance, plane_max_angle, verify_tolerance, revolution_angle_tolerance;
+  /// noise.cpp).
   bool adapt_to_noise = true;
   /// ... and leave out of the matching the ranges where the scan is measured this noisy (1 sigma,
   /// mm; 1.2 mm for the 60 mm part: 2 % of its diameter) and three times noisier than nearer
@@ -28,6 +29,9 @@ struct StageSettings : DetectionParams {
   bool remove_planes = true;
   float plane_min_area = 0.0f;   ///< mm^2; 0: the model's largest possible flat face (boundingFaceArea)
   float plane_tolerance = 1.5f;  ///< largest distance of a plane's point from it, mm
+  /// Largest angle of a plane's point's normal from the plane's, radians (20 degrees;
+  /// PlaneParams::max_angle; raised on a scan whose normals stay rough, noise.cpp).
+  float plane_max_angle = 0.35f;
   /// A background plane's extent has holes up to this wide filled, mm (PlaneParams::hole): the
   /// model's diameter, what a copy lying on the floor hides of it.
   float plane_hole = 60.0f;

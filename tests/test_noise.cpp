@@ -72,6 +72,7 @@ TEST(Noise, OnlyANoisyScanRaisesTheValues) {
   EXPECT_EQ(clean.plane_tolerance, p.plane_tolerance);
   EXPECT_EQ(clean.revolution_angle_tolerance, p.revolution_angle_tolerance);
   EXPECT_EQ(clean.report_score, p.report_score);
+  EXPECT_EQ(clean.plane_max_angle, p.plane_max_angle);
   const StageSettings mild = adaptedToNoise(p, {0.24f, 2.0f, 256});  // tilt 0.12: k raised, angles kept
   EXPECT_GT(mild.k_normals, p.k_normals);
   EXPECT_EQ(mild.revolution_angle_tolerance, p.revolution_angle_tolerance);
@@ -83,10 +84,16 @@ TEST(Noise, OnlyANoisyScanRaisesTheValues) {
   EXPECT_GT(noisy.verify_tolerance, p.verify_tolerance);
   EXPECT_GT(noisy.plane_tolerance, 2.0f);
   EXPECT_FLOAT_EQ(noisy.report_score, 0.5f);  // tilt 0.5: only detections scoring 0.5 reported
-  EXPECT_EQ(adaptedToNoise(p, {0.54f, 2.0f, 256}).report_score, p.report_score);  // tilt 0.27: a real Kinect frame's
-  const float midway = adaptedToNoise(p, {0.8f, 2.0f, 256}).report_score;  // tilt 0.4
-  EXPECT_GT(midway, p.min_score);
-  EXPECT_LT(midway, 0.5f);
+  EXPECT_NEAR(noisy.plane_max_angle * 180.0f / float(M_PI), 55.0f, 0.1f);  // and the plane search's normal test at 55 degrees
+  const StageSettings kinect = adaptedToNoise(p, {0.54f, 2.0f, 256});  // tilt 0.27: a real Kinect frame's
+  EXPECT_EQ(kinect.report_score, p.report_score);
+  EXPECT_EQ(kinect.plane_max_angle, p.plane_max_angle);
+  const StageSettings midway = adaptedToNoise(p, {0.7f, 2.0f, 256});  // tilt 0.35
+  EXPECT_GT(midway.report_score, p.min_score);
+  EXPECT_LT(midway.report_score, 0.5f);
+  EXPECT_GT(midway.plane_max_angle, p.plane_max_angle);
+  EXPECT_LT(midway.plane_max_angle * 180.0f / float(M_PI), 55.0f);
+  EXPECT_NEAR(adaptedToNoise(p, {0.8f, 2.0f, 256}).plane_max_angle * 180.0f / float(M_PI), 55.0f, 0.1f);  // tilt 0.4
   StageSettings loose = p;
   loose.e_gmax = 10.0f;
   EXPECT_EQ(adaptedToNoise(loose, {1.0f, 2.0f, 256}).e_gmax, 10.0f);
