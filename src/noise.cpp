@@ -69,6 +69,10 @@ constexpr float kSigmasOfSupport = 1.5f;
 constexpr float kBandRatio = 1.25f;
 constexpr std::size_t kLeastBandFits = 12;
 constexpr float kNoisierThanBest = 3.0f;
+/// How far `tilt` has come from `from` towards `to` (both tilts, from < to), at most the whole way:
+/// the share of a value's rise that adaptedToNoise gives a scan between the two.
+float rampShare(float tilt, float from, float to) { return std::min(1.0f, (tilt - from) / (to - from)); }
+
 /// The most neighbours a query answers at once (the pixel search's limit).
 constexpr std::size_t kMaxQuery = 32;
 
@@ -159,12 +163,12 @@ StageSettings adaptedToNoise(const StageSettings& p, const NoiseEstimate& noise)
   a.e_gmax = std::max(p.e_gmax, kSigmasOfConsistency * noise.sigma);
   a.plane_tolerance = std::max(p.plane_tolerance, kSigmasOfConsistency * noise.sigma);
   if (tilt > kPlaneTilt) {
-    const float rise = std::min(1.0f, (tilt - kPlaneTilt) / (kRoughPlaneTilt - kPlaneTilt));
+    const float rise = rampShare(tilt, kPlaneTilt, kRoughPlaneTilt);
     a.plane_max_angle = std::max(p.plane_max_angle, p.plane_max_angle + rise * (kRoughPlaneAngle - p.plane_max_angle));
   }
   a.verify_tolerance = std::max(p.verify_tolerance, kSigmasOfSupport * noise.sigma);
   if (tilt > kReportTilt) {
-    const float rise = std::min(1.0f, (tilt - kReportTilt) / (kHighReportTilt - kReportTilt));
+    const float rise = rampShare(tilt, kReportTilt, kHighReportTilt);
     a.report_score = std::max(p.report_score, p.min_score + rise * (kRoughReportScore - p.min_score));
   }
   return a;

@@ -276,6 +276,12 @@ struct CapBin {
       if (poseErrors(pose, copy.pose, eval).mssd_mm < 10.0f) return &copy;
     return nullptr;
   }
+  /// The detections lying on a copy (copyAt) and those lying on none.
+  [[nodiscard]] std::pair<int, int> rightAndOff(const DetectionResult& result) const {
+    int right = 0, off = 0;
+    for (const Detection& d : result.detections) (copyAt(d.pose) != nullptr ? right : off) += 1;
+    return {right, off};
+  }
 };
 
 // turn_over: a cap's clique often lays the inside of its closed end on the disc that the sensor
@@ -286,13 +292,8 @@ TEST(RealSensors, CapsUpsideDownAreTurnedOverOnStructuredLight) {
   const CapBin b(7101);
   StageSettings kept = b.settings;
   kept.turn_over = false;
-  const auto count = [&](const DetectionResult& result) {
-    int right = 0, wrong = 0;
-    for (const Detection& d : result.detections) (b.copyAt(d.pose) != nullptr ? right : wrong) += 1;
-    return std::pair{right, wrong};
-  };
-  const auto [right_kept, wrong_kept] = count(Detector(b.db, kept).detect(b.bin.cloud));
-  const auto [right_turned, wrong_turned] = count(Detector(b.db, b.settings).detect(b.bin.cloud));
+  const auto [right_kept, wrong_kept] = b.rightAndOff(Detector(b.db, kept).detect(b.bin.cloud));
+  const auto [right_turned, wrong_turned] = b.rightAndOff(Detector(b.db, b.settings).detect(b.bin.cloud));
   std::printf("kept: %d right, %d off; turned over: %d right, %d off\n", right_kept, wrong_kept, right_turned, wrong_turned);
   EXPECT_GE(right_turned, right_kept + 2);
   EXPECT_LE(wrong_turned, wrong_kept);
@@ -422,8 +423,7 @@ TEST(RealSensors, LowScoringPosesAreNotReportedOnTimeOfFlight) {
 // on their copy and none off every copy (MSSD under 10 mm), against 10 and 4 at 20 degrees.
 TEST(RealSensors, FloorIsFoundOnTimeOfFlight) {
   const CapBin b(3101, SensorKind::TimeOfFlight);
-  int right = 0, off = 0;
-  for (const Detection& d : Detector(b.db, b.settings).detect(b.bin.cloud).detections) (b.copyAt(d.pose) != nullptr ? right : off) += 1;
+  const auto [right, off] = b.rightAndOff(Detector(b.db, b.settings).detect(b.bin.cloud));
   std::printf("%d right, %d off\n", right, off);
   EXPECT_GE(right, 12);
   EXPECT_EQ(off, 0);
