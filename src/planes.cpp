@@ -271,15 +271,40 @@ bool ofTheBin(const Background& b, bool largest, const std::vector<Plane>& kept)
   return c <= std::sin(off) && b.hides_nothing_below;
 }
 
+/// Share of a parallel plane's inliers that must lie over a kept plane's extent to be parts on it.
+constexpr float kOnKeptShare = 0.5f;
+
+/// Whether most of b's inliers lie over where a kept plane parallel to it is hidden by what
+/// stands on it (PlaneFootprint::covers), on the sensor's side and less than a hole's width (the
+/// part's size) from it: a layer of flat parts lying on the floor (brackets' plates a few
+/// millimetres up), which hides nothing farther than 3 tolerances behind it. A second floor (a
+/// bin on a table) hides the first over more than a hole's width, a rim lies past the floor's
+/// edge, and the bin's far wall lies farther from the near one than a part is long.
+bool liesOnKept(const Background& b, const std::vector<Plane>& kept, const Points& points, const PlaneParams& params) {
+  const float off = detail::kSquareDegrees * float(M_PI) / 180.0f;
+  for (const Plane& under : kept) {
+    if (!under.extent || std::abs(b.plane.normal.dot(under.normal)) < std::cos(off)) continue;
+    const float sensor = under.side(params.viewpoint) > 0 ? 1.0f : -1.0f;
+    std::size_t over = 0;
+    for (const auto i : b.inliers) {
+      const float up = sensor * under.side(points[i]);
+      over += up > params.tolerance && up < params.hole && under.extent->covers(points[i]);
+    }
+    if (static_cast<float>(over) >= kOnKeptShare * static_cast<float>(b.inliers.size())) return true;
+  }
+  return false;
+}
+
 /// The background planes of the bin (ofTheBin), their patches flagged in `plane`. The largest
 /// plane (of `most_inliers`) first: a table that hides nothing seen through it, the room's floor
 /// seen past its edge, is the first one kept, and what is parallel to it may be seen through it too.
-std::vector<Plane> keptOfTheBin(std::vector<Background>& background, std::size_t most_inliers, std::vector<char>& plane) {
+std::vector<Plane> keptOfTheBin(std::vector<Background>& background, std::size_t most_inliers, const Points& points,
+                                const PlaneParams& params, std::vector<char>& plane) {
   const auto largest = [&](const Background& b) { return b.inliers.size() == most_inliers; };
   std::stable_partition(background.begin(), background.end(), largest);
   std::vector<Plane> kept;
   for (const Background& b : background) {
-    if (!ofTheBin(b, largest(b), kept)) continue;  // its points stay in the votes
+    if (!ofTheBin(b, largest(b), kept) || liesOnKept(b, kept, points, params)) continue;  // its points stay in the votes
     kept.push_back(b.plane);
     for (const auto& patch : b.patches)
       for (const auto i : patch) plane[i] = 1;
@@ -376,7 +401,7 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
     });
   }
   flood.wait();
-  const std::vector<Plane> kept = keptOfTheBin(background, most_inliers, plane);
+  const std::vector<Plane> kept = keptOfTheBin(background, most_inliers, points, params, plane);
   if (removed) removed->insert(removed->end(), kept.begin(), kept.end());
   return plane;
 }

@@ -67,6 +67,34 @@ TEST(Planes, FloorAndWallGoTheLayerOfPartsStays) {
   EXPECT_EQ(removed[3], 0) << "small top";
 }
 
+// Three plates 4 mm thick lying flat on the floor, touching (brackets' plates): their tops form a
+// plane larger than min_area that hides nothing farther than 3 tolerances behind it, parallel to
+// the floor. They lie in the floor's holes, less than a part's size above it: parts, not a second
+// floor. Neither their points nor their plane (what verification counts as solid) are taken.
+TEST(Planes, PlatesLyingFlatOnTheFloorStay) {
+  Bin bin;
+  Rng rng(7);
+  for (float x = -100; x <= 100; x += kSpacing)
+    for (float y = -100; y <= 100; y += kSpacing) {
+      if (onDisc(x, y)) bin.add(Vec3(x, y, 496), Vec3(0, 0, -1), 2, rng);
+      else bin.add(Vec3(x, y, 500), Vec3(0, 0, -1), 0, rng);
+    }
+  PlaneParams params;
+  params.hole = 60.0f;  // what a part lying on the floor hides of it (StageSettings: the part's size)
+  std::vector<Plane> background;
+  const std::vector<char> flat = largePlanes(bin.points, bin.normals, 1.0f / (kSpacing * kSpacing), params, &background);
+  int count[3] = {0, 0, 0}, removed[3] = {0, 0, 0};
+  for (std::size_t i = 0; i < flat.size(); ++i) {
+    ++count[bin.kind[i]];
+    removed[bin.kind[i]] += flat[i];
+  }
+  EXPECT_GT(count[2] * kSpacing * kSpacing, params.min_area) << "the plates' tops are larger than min_area";
+  EXPECT_GE(removed[0], 0.99 * count[0]) << "floor";
+  EXPECT_EQ(removed[2], 0) << "plates";
+  ASSERT_EQ(background.size(), 1u) << "the floor alone";
+  EXPECT_NEAR(background[0].normal.z() * background[0].d, 500.0f, 0.2f);
+}
+
 TEST(Planes, ASmallFlatTopAloneStays) {
   const Bin bin = makeBin();
   Bin parts;
