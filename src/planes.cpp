@@ -228,19 +228,37 @@ struct Behind {
   std::size_t seen_through = 0;
 };
 
-/// What `plane` hides from the sensor at `viewpoint` (Behind), `footprint` its inliers'.
-Behind pointsBehind(const Points& points, const Plane& plane, const PlaneFootprint& footprint, float tolerance,
-                    const Vec3& viewpoint) {
-  Behind behind;
+/// No plane found yet holds the point (largePlanes's found_in).
+constexpr std::uint8_t kOnNoPlane = 0xff;
+
+/// What `plane` hides from the sensor at `viewpoint`, `footprint` its inliers': the points
+/// farther than 3 tolerances behind it (first), and the same with the inliers of a parallel
+/// plane found before it counted from one tolerance on (second): that plane is a surface of its
+/// own, such as the floor seen between caps lying open side up, their insides 3 mm above it.
+/// found_in[i]: the index in `found` of the plane found before that holds point i, or kOnNoPlane.
+std::pair<Behind, Behind> pointsBehind(const Points& points, const Plane& plane, const PlaneFootprint& footprint,
+                                       float tolerance, const Vec3& viewpoint, std::span<const std::uint8_t> found_in,
+                                       const std::vector<Plane>& found) {
+  std::pair<Behind, Behind> behind;
   if (footprint.empty()) return behind;
+  std::vector<float> margin(std::size_t{kOnNoPlane} + 1, 3.0f * tolerance);
+  const float parallel = std::cos(detail::kSquareDegrees * float(M_PI) / 180.0f);
+  for (std::size_t f = 0; f < found.size(); ++f)
+    if (std::abs(found[f].normal.dot(plane.normal)) >= parallel) margin[f] = tolerance;
   const float sensor_side = plane.side(viewpoint);
-  for (const Vec3& p : points) {
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Vec3& p = points[i];
     const float point_side = plane.side(p);
-    if (!(point_side < -3.0f * tolerance)) continue;
-    behind.below += footprint.within(p);
+    if (!(point_side < -margin[found_in[i]])) continue;
+    const bool beyond = point_side < -3.0f * tolerance;
+    const bool within = footprint.within(p);
+    behind.first.below += beyond && within;
+    behind.second.below += within;
     if (!(sensor_side > 0)) continue;
     const Vec3 crossing = viewpoint + (sensor_side / (sensor_side - point_side)) * (p - viewpoint);
-    behind.seen_through += footprint.on(crossing);
+    const bool through = footprint.on(crossing);
+    behind.first.seen_through += beyond && through;
+    behind.second.seen_through += through;
   }
   return behind;
 }
@@ -254,6 +272,12 @@ struct Background {
   bool hides_nothing_through = false;  ///< Behind::seen_through at most max_behind of its inliers
   std::vector<std::vector<std::uint32_t>> patches;
 };
+
+/// b's connected patches of min_count points or more.
+void patchesOf(Background& b, const Points& points, float link, std::size_t min_count) {
+  for (auto& patch : detail::linkedPatches(points, b.inliers, link, b.plane.normal))
+    if (patch.size() >= min_count) b.patches.push_back(std::move(patch));
+}
 
 /// Whether a background plane is a surface of the bin or the table, given the planes kept
 /// before it. The first one kept has nothing behind it within its extent, or is the largest
@@ -355,6 +379,8 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
   background.reserve(static_cast<std::size_t>(std::max(0, params.max_planes)));  // no move under a running task
   tbb::task_group flood;
   std::size_t most_inliers = 0;  // of every plane found, background or not
+  std::vector<Plane> found;      // every plane found, background or not, in turn (at most kOnNoPlane)
+  std::vector<std::uint8_t> found_in(points.size(), kOnNoPlane);
   for (int round = 0; round < params.max_planes; ++round) {
     left.clear();
     for (std::uint32_t i = 0; i < points.size(); ++i)
@@ -387,18 +413,29 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
     most_inliers = std::max(most_inliers, inliers.size());
     // The inliers' footprint, once: what the plane hides, and its extent as background.
     best.extent = std::make_shared<const PlaneFootprint>(points, inliers, best, params.link, params.hole);
-    const Behind behind = pointsBehind(points, best, *best.extent, params.tolerance, params.viewpoint);
+    const auto [behind, on_found] = pointsBehind(points, best, *best.extent, params.tolerance, params.viewpoint, found_in, found);
+    if (found.size() < kOnNoPlane) {
+      for (const auto i : inliers) found_in[i] = static_cast<std::uint8_t>(found.size());
+      found.push_back(best);
+    }
     const float most = params.max_behind * static_cast<float>(points.size());
+    const float most_through = params.max_behind * static_cast<float>(inliers.size());
     const bool below = static_cast<float>(behind.below) <= most;
-    const bool through = static_cast<float>(behind.seen_through) <= params.max_behind * static_cast<float>(inliers.size());
+    const bool through = static_cast<float>(behind.seen_through) <= most_through;
     if (!below && !through) continue;  // not background: a layer of parts
     // The farthest surface, the bin's floor or a table: background for verification even where
     // what the parts leave of it is in pieces each smaller than min_count (those stay in the votes).
     Background* b = &background.emplace_back(Background{best, inliers, below, through, {}});
-    flood.run([&, b] {
-      for (auto& patch : detail::linkedPatches(points, b->inliers, params.link, b->plane.normal))
-        if (patch.size() >= min_count) b->patches.push_back(std::move(patch));
-    });
+    if (static_cast<float>(on_found.below) > most && static_cast<float>(on_found.seen_through) > most_through) {
+      // It hides a parallel surface found before it, a few millimetres behind. In pieces, each
+      // smaller than min_count, it is a layer of parts lying flat on that surface (caps open side
+      // up, brackets' plates) and no background. In one piece as large, it is another slab of a
+      // noisy table (a Kinect's disparity steps, 3-5 mm apart), which stays background.
+      patchesOf(*b, points, params.link, min_count);
+      if (b->patches.empty()) background.pop_back();
+      continue;
+    }
+    flood.run([&, b] { patchesOf(*b, points, params.link, min_count); });
   }
   flood.wait();
   const std::vector<Plane> kept = keptOfTheBin(background, most_inliers, points, params, plane);
