@@ -49,17 +49,27 @@ Bin makeBin() {
   return bin;
 }
 
+/// Points of each kind, and those of each kind taken out as a plane's.
+struct Tally {
+  int count[4] = {0, 0, 0, 0}, removed[4] = {0, 0, 0, 0};
+};
+
+Tally tally(const Bin& bin, const std::vector<char>& flat) {
+  Tally t;
+  for (std::size_t i = 0; i < flat.size(); ++i) {
+    ++t.count[bin.kind[i]];
+    t.removed[bin.kind[i]] += flat[i];
+  }
+  return t;
+}
+
 }  // namespace
 
 TEST(Planes, FloorAndWallGoTheLayerOfPartsStays) {
   const Bin bin = makeBin();
   const std::vector<char> flat = largePlanes(bin.points, bin.normals, 1.0f / (kSpacing * kSpacing), PlaneParams{});
   ASSERT_EQ(flat.size(), bin.points.size());
-  int count[4] = {0, 0, 0, 0}, removed[4] = {0, 0, 0, 0};
-  for (std::size_t i = 0; i < flat.size(); ++i) {
-    ++count[bin.kind[i]];
-    removed[bin.kind[i]] += flat[i];
-  }
+  const auto [count, removed] = tally(bin, flat);
   EXPECT_GE(removed[0], 0.99 * count[0]) << "floor";
   EXPECT_GE(removed[1], 0.99 * count[1]) << "wall";
   EXPECT_GT(count[2] * kSpacing * kSpacing, 6000.0f) << "the layer is larger than min_area: only the floor behind it saves it";
@@ -83,11 +93,7 @@ TEST(Planes, PlatesLyingFlatOnTheFloorStay) {
   params.hole = 60.0f;  // what a part lying on the floor hides of it (StageSettings: the part's size)
   std::vector<Plane> background;
   const std::vector<char> flat = largePlanes(bin.points, bin.normals, 1.0f / (kSpacing * kSpacing), params, &background);
-  int count[3] = {0, 0, 0}, removed[3] = {0, 0, 0};
-  for (std::size_t i = 0; i < flat.size(); ++i) {
-    ++count[bin.kind[i]];
-    removed[bin.kind[i]] += flat[i];
-  }
+  const auto [count, removed] = tally(bin, flat);
   EXPECT_GT(count[2] * kSpacing * kSpacing, params.min_area) << "the plates' tops are larger than min_area";
   EXPECT_GE(removed[0], 0.99 * count[0]) << "floor";
   EXPECT_EQ(removed[2], 0) << "plates";
@@ -115,11 +121,7 @@ TEST(Planes, InsidesOfCapsOpenSideUpStay) {
     }
   std::vector<Plane> background;
   const std::vector<char> flat = largePlanes(bin.points, bin.normals, 1.0f / (kSpacing * kSpacing), PlaneParams{}, &background);
-  int count[3] = {0, 0, 0}, removed[3] = {0, 0, 0};
-  for (std::size_t i = 0; i < flat.size(); ++i) {
-    ++count[bin.kind[i]];
-    removed[bin.kind[i]] += flat[i];
-  }
+  const auto [count, removed] = tally(bin, flat);
   EXPECT_GT(count[2] * kSpacing * kSpacing, PlaneParams{}.min_area) << "the discs together are larger than min_area";
   EXPECT_GE(removed[0], 0.99 * count[0]) << "floor";
   EXPECT_EQ(removed[2], 0) << "discs";
@@ -158,11 +160,7 @@ TEST(Planes, ATiltedFaceThatHidesNothingStays) {
     }
   std::vector<Plane> background;
   const std::vector<char> flat = largePlanes(bin.points, bin.normals, 1.0f / (kSpacing * kSpacing), PlaneParams{}, &background);
-  int count[3] = {0, 0, 0}, removed[3] = {0, 0, 0};
-  for (std::size_t i = 0; i < flat.size(); ++i) {
-    ++count[bin.kind[i]];
-    removed[bin.kind[i]] += flat[i];
-  }
+  const auto [count, removed] = tally(bin, flat);
   EXPECT_GT(count[2] * kSpacing * kSpacing, PlaneParams{}.min_area) << "the plate is larger than min_area";
   EXPECT_GE(removed[0], 0.99 * count[0]) << "floor";
   EXPECT_EQ(removed[2], 0) << "tilted plate";
