@@ -242,9 +242,8 @@ std::pair<Behind, Behind> pointsBehind(const Points& points, const Plane& plane,
   std::pair<Behind, Behind> behind;
   if (footprint.empty()) return behind;
   std::vector<float> margin(std::size_t{kOnNoPlane} + 1, 3.0f * tolerance);
-  const float parallel = std::cos(detail::kSquareDegrees * float(M_PI) / 180.0f);
   for (std::size_t f = 0; f < found.size(); ++f)
-    if (std::abs(found[f].normal.dot(plane.normal)) >= parallel) margin[f] = tolerance;
+    if (detail::nearlyParallel(found[f].normal, plane.normal)) margin[f] = tolerance;
   const float sensor_side = plane.side(viewpoint);
   for (std::size_t i = 0; i < points.size(); ++i) {
     const Vec3& p = points[i];
@@ -290,8 +289,8 @@ void patchesOf(Background& b, const Points& points, float link, std::size_t min_
 /// verification.
 bool ofTheBin(const Background& b, bool largest, const std::vector<Plane>& kept) {
   if (kept.empty()) return b.hides_nothing_below || (largest && b.hides_nothing_through);
+  if (detail::nearlyParallel(b.plane.normal, kept.front().normal)) return b.hides_nothing_below || b.hides_nothing_through;
   const float c = std::abs(b.plane.normal.dot(kept.front().normal)), off = detail::kSquareDegrees * float(M_PI) / 180.0f;
-  if (c >= std::cos(off)) return b.hides_nothing_below || b.hides_nothing_through;
   return c <= std::sin(off) && b.hides_nothing_below;
 }
 
@@ -305,9 +304,8 @@ constexpr float kOnKeptShare = 0.5f;
 /// bin on a table) hides the first over more than a hole's width, a rim lies past the floor's
 /// edge, and the bin's far wall lies farther from the near one than a part is long.
 bool liesOnKept(const Background& b, const std::vector<Plane>& kept, const Points& points, const PlaneParams& params) {
-  const float off = detail::kSquareDegrees * float(M_PI) / 180.0f;
   for (const Plane& under : kept) {
-    if (!under.extent || std::abs(b.plane.normal.dot(under.normal)) < std::cos(off)) continue;
+    if (!under.extent || !detail::nearlyParallel(b.plane.normal, under.normal)) continue;
     const float sensor = under.side(params.viewpoint) > 0 ? 1.0f : -1.0f;
     std::size_t over = 0;
     for (const auto i : b.inliers) {

@@ -28,8 +28,6 @@ constexpr std::size_t kChunk = 128;
 /// scan shows in front of it lies inside that solid: physically impossible, counted as
 /// contradicted (a right pose resting on the floor touches it within the noise).
 constexpr float kInsideMargin = 2.0f;
-/// Background planes this close to parallel: another floor, a step, the bin's rim.
-const float kParallelCos = std::cos(detail::kSquareDegrees * float(M_PI) / 180.0f);
 static_assert(kChunk % 4 == 0, "a chunk starts on a SIMD lane boundary");
 
 /// One chunk's share of ICP's normal equations.
@@ -412,7 +410,7 @@ bool inside(const Plane& b, std::span<const Plane> planes, const Vec3& p, const 
   const float depth = std::abs(side_point);
   if (!(side_viewpoint * side_point < 0 && depth > margin && depth <= reach && b.covers(p))) return false;
   return std::none_of(planes.begin(), planes.end(), [&](const Plane& c) {
-    if (&c == &b || std::abs(c.normal.dot(b.normal)) < kParallelCos) return false;
+    if (&c == &b || !detail::nearlyParallel(c.normal, b.normal)) return false;  // another floor, a step, the bin's rim
     const float c_viewpoint = c.side(viewpoint), c_point = c.side(p);
     return std::abs(c_viewpoint) > std::abs(side_viewpoint) && (c_viewpoint * c_point > 0 || std::abs(c_point) <= margin) &&
            c.covers(p);

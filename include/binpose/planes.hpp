@@ -118,6 +118,11 @@ namespace detail {
 /// (or square) are taken as parallel (or square): drafted walls, a tilted scan, the bin's rim
 /// over its floor.
 inline constexpr float kSquareDegrees = 15.0f;
+/// Whether two unit normals lie within kSquareDegrees of parallel (or of opposite).
+inline bool nearlyParallel(const Vec3& a, const Vec3& b) {
+  static const float min_cos = std::cos(kSquareDegrees * float(M_PI) / 180.0f);
+  return std::abs(a.dot(b)) >= min_cos;
+}
 /// A link from patch point a to its neighbour b, both indices into the points, in the patch
 /// grown from `seed`: whether b joins the patch.
 using Joins = std::function<bool(std::uint32_t b, std::uint32_t a, std::uint32_t seed)>;
