@@ -387,16 +387,23 @@ long SceneEvidence::cellAt(float u, float v) const {
   return y * width_ + x;
 }
 
+namespace {
+
+/// Whether p (at `range` from `viewpoint`) lies behind plane b by more than kInsideMargin
+/// tolerances, where the scan sees the plane in front of it: the line of sight to p crosses b
+/// where the scan's nearest range (`seen_range`) lies on it.
+bool behindSeenPlane(const Plane& b, const Vec3& viewpoint, const Vec3& p, float range, float seen_range, float tolerance) {
+  const float side_viewpoint = b.side(viewpoint), side_point = b.side(p);
+  if (side_viewpoint * side_point >= 0 || std::abs(side_point) <= kInsideMargin * tolerance) return false;  // in front, or touching
+  const float crossing = range * side_viewpoint / (side_viewpoint - side_point);
+  return std::abs(seen_range - crossing) <= 2 * tolerance;
+}
+
+}  // namespace
+
 bool SceneEvidence::insideBackground(const Vec3& p, float range, float seen_range, float tolerance) const {
-  const float margin = kInsideMargin * tolerance;
-  for (const Plane& b : background_) {
-    const float side_viewpoint = b.side(viewpoint_), side_point = b.side(p);
-    if (side_viewpoint * side_point >= 0 || std::abs(side_point) <= margin) continue;  // in front, or touching
-    // Where the line of sight crosses the plane; the scan must see the plane there.
-    const float crossing = range * side_viewpoint / (side_viewpoint - side_point);
-    if (std::abs(seen_range - crossing) <= 2 * tolerance) return true;
-  }
-  return false;
+  return std::any_of(background_.begin(), background_.end(),
+                     [&](const Plane& b) { return behindSeenPlane(b, viewpoint_, p, range, seen_range, tolerance); });
 }
 
 namespace {
@@ -512,6 +519,20 @@ Evidence tally(const std::vector<Facing>& facing, const std::vector<Verdict>& ve
   return e;}
 
 }  // namespace
+
+Sinking SceneEvidence::sunkBehind(const Plane& face, const Pose& pose, const PreparedModel& model, float tolerance,
+                                  float model_spacing) const {
+  const std::vector<Facing> facing = facingPoints(pose, model, to_view_, viewpoint_, cos_grazing_);
+  const std::optional<ZBuffer> front = selfOcclusion(facing, model_spacing);
+  Sinking s;
+  for (const Facing& f : facing) {
+    if (front && front->at(f.u, f.v) < f.range - 2 * model_spacing) continue;  // hidden by the part itself
+    ++s.points;
+    const long c = cellAt(f.u, f.v);
+    s.sunk += c >= 0 && std::isfinite(nearest_[c]) && behindSeenPlane(face, viewpoint_, f.p, f.range, nearest_[c], tolerance);
+  }
+  return s;
+}
 
 Evidence SceneEvidence::evaluate(const Pose& pose, const PreparedModel& model, float tolerance, float model_spacing,
                                  std::vector<std::uint32_t>* support) const {

@@ -178,7 +178,22 @@ bool Matcher::stands(const Pose& pose, float score, const Evidence& e, std::span
   if (score < p.min_score) return false;
   if (e.visibleSupport() < p.min_visible_support) return false;  // met by the scan only in passing
   if (sunk(pose)) return false;  // inside the floor, a wall or the table
+  if (sunkBehindFace(pose, support, e)) return false;  // inside a surface that goes on from its face
   return outlineStandsOut(pose, support, laid);
+}
+
+bool Matcher::sunkBehindFace(const Pose& pose, std::span<const std::uint32_t> support, const Evidence& e) const {
+  // A right pose seen by one face shows nothing of itself hidden behind that face's plane; a
+  // pose laid on a patch of a larger surface (a table that no background plane fits: warped, or
+  // stepped by a sensor's disparity quanta) has the rest of its body there, hidden by that
+  // surface. Copies lying side by side, their faces level, hide a little of one another so, and
+  // then among much else that hides them: the hidden share must also be most of what is hidden.
+  constexpr float kMostBehindFace = 0.1f;   // of the visible points (Sinking::share)
+  constexpr float kMostOfOccluded = 0.25f;  // of those the scan hides (Evidence::occluded)
+  const std::optional<Plane> face = faceOf(support);
+  if (!face) return false;
+  const Sinking s = evidence.sunkBehind(*face, pose, scored_model, p.verify_tolerance, db.model().sample_radius);
+  return s.share() > kMostBehindFace && static_cast<float>(s.sunk) > kMostOfOccluded * static_cast<float>(e.occluded);
 }
 
 bool Matcher::outlineStandsOut(const Pose& pose, std::span<const std::uint32_t> support, bool laid) const {

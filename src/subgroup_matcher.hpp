@@ -113,10 +113,16 @@ struct Matcher {
   Evidence scoredEvidence(const Pose& pose, std::vector<std::uint32_t>& support) const;
   /// Whether a verified pose scoring `score` with evidence `e` and the supporting scan points
   /// `support` stands as a detection: at least min_score, supported on min_visible_support of
-  /// what the scan could show, not sunk into the bin (sunk), and standing out of the scan at
-  /// its outline (outlineStandsOut; `laid`: a pose laid on one flat face).
+  /// what the scan could show, not sunk into the bin (sunk) nor behind its own face
+  /// (sunkBehindFace), and standing out of the scan at its outline (outlineStandsOut; `laid`: a
+  /// pose laid on one flat face).
   [[nodiscard]] bool stands(const Pose& pose, float score, const Evidence& e, std::span<const std::uint32_t> support,
                             bool laid = false) const;
+  /// Whether the pose, when its support lies on one plane (faceOf), has more than a tenth of its
+  /// visible points behind that plane where the scan shows the plane in front of them
+  /// (SceneEvidence::sunkBehind), and those are more than a quarter of the points the scan hides
+  /// (e.occluded): a body sunk into a surface that goes on from its face.
+  [[nodiscard]] bool sunkBehindFace(const Pose& pose, std::span<const std::uint32_t> support, const Evidence& e) const;
   /// Whether the posed part's outline tells it from the scan around it (SceneEvidence::outline):
   /// the scan's surface does not go on past it at more than max_outline_share of it, and where
   /// the support lies on one plane, the scan falls away behind at least min_outline_drop of it.

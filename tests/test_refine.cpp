@@ -130,6 +130,39 @@ TEST(Evidence, APoseSunkIntoTheFloorIsToldFromOneLyingOnIt) {
   EXPECT_EQ(share(on_end), 0.0f);
 }
 
+// A box off to the side of the sensor shows it its top and one side face. Laid with its top in a
+// larger surface (a table no background plane fits), its side face lies behind that surface's
+// plane, where the scan shows the plane in front of it; standing on a floor, that face is seen.
+TEST(Evidence, APoseSunkBehindItsOwnFaceIsToldFromOneStanding) {
+  const OrientedModel box = prepareModel(builtinPart("box"), ModelParams{});  // 60 x 40 x 20, centred
+  const PreparedModel model(box.points, box.normals);
+  Pose pose = Pose::Identity();  // top z = 490, x in [170, 230], y in [-20, 20]; side x = 170
+  pose.translation() = Vec3(200, 0, 500);
+  const Plane top{-Vec3::UnitZ(), -490.0f, {}};  // its normal towards the sensor
+  const auto judge = [&](const Points& scan) {
+    const PointGrid grid(scan);
+    const SceneEvidence evidence(scan, grid, Vec3::Zero());
+    return evidence.sunkBehind(top, pose, model, 1.0f, box.sample_radius);
+  };
+  Points table, standing;
+  for (float x = 100.25f; x < 300; x += 0.5f)
+    for (float y = -59.75f; y < 60; y += 0.5f) {
+      const bool under = x >= 170 && x <= 230 && std::abs(y) <= 20;
+      table.emplace_back(x, y, 490.0f);
+      standing.emplace_back(x, y, under ? 490.0f : 510.0f);  // the floor 20 mm behind the top
+    }
+  for (float y = -19.75f; y < 20; y += 0.5f)
+    for (float z = 490.25f; z < 510; z += 0.5f) standing.emplace_back(170.0f, y, z);  // the side face
+  const Sinking sunk = judge(table), stood = judge(standing);
+  // The side face is 800 of the 3200 mm^2 facing the sensor, seen at 71 degrees (sparser in the
+  // self-occlusion test's cells), less its 2 mm next to the top; the rule's limit is a tenth.
+  EXPECT_GT(sunk.points, 1000);
+  EXPECT_GT(sunk.share(), 0.1f);
+  EXPECT_LT(sunk.share(), 0.3f);
+  EXPECT_GT(stood.points, 1000);
+  EXPECT_LT(stood.share(), 0.02f);  // a few side points where the range image's cell holds the top's rim
+}
+
 // The share of what the scan should show that it supports: high for a right pose two thirds
 // hidden behind a plate (its score is low), low for a pose mostly beyond the scan's edge that
 // meets the scan only in its last sixth (its score would pass min_score).

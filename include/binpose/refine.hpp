@@ -203,6 +203,14 @@ class SceneEvidence {
   /// over no plane parallel to it and deeper that the scan shows there. Planes whose extent is
   /// smaller than (2 reach)^2 are not judged.
   [[nodiscard]] Sinking sinking(const Pose& pose, const PreparedModel& model, float margin, float reach) const;
+  /// The posed model's facing points not hidden by the part itself (Sinking::points) that lie
+  /// behind `face` where the scan shows that plane in front of them (Sinking::sunk), as
+  /// evaluate() counts a point inside a background plane. `face`: the plane of the scan points
+  /// that support the pose, when they lie on one. A part cannot lie inside a surface that goes on
+  /// from its own face: a pose that lays one face on a patch of a table, its body sunk into it,
+  /// which a warped or noisy table (no background plane there) does not give away otherwise.
+  [[nodiscard]] Sinking sunkBehind(const Plane& face, const Pose& pose, const PreparedModel& model, float tolerance,
+                                   float model_spacing) const;
   /// The scan beyond the posed model's outline (OutlineEvidence; src/outline.cpp): a wrong pose
   /// that lays one face of the part on a larger surface of the scan (the top of another part,
   /// the floor) is supported wherever it lies, but the surface goes on past its edges.
