@@ -187,7 +187,7 @@ bool Matcher::sunkBehindFace(const Pose& pose, std::span<const std::uint32_t> su
   // pose laid on a patch of a larger surface (a table that no background plane fits: warped, or
   // stepped by a sensor's disparity quanta) has the rest of its body there, hidden by that
   // surface. Copies lying side by side, their faces level, hide a little of one another so, and
-  // then among much else that hides them: the hidden share must also be most of what is hidden.
+  // then among much else that hides them: those points must also be a quarter of all it hides.
   constexpr float kMostBehindFace = 0.1f;   // of the visible points (Sinking::share)
   constexpr float kMostOfOccluded = 0.25f;  // of those the scan hides (Evidence::occluded)
   const std::optional<Plane> face = faceOf(support);
