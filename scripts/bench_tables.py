@@ -14,6 +14,25 @@ def pct(x):
     return f"{round(100 * x)}%"
 
 
+def sensor_table(noisy, rows, full):
+    """The sensor models' rows: README's short table, or docs/benchmarks.md's (`full`)."""
+    if full:
+        print("\n| input | noise mm | k | binpose ms | recall (> half visible) | precision | centroid / angle | OpenCV ms, recall, precision |")
+        print("|---|---|---|---|---|---|---|---|")
+    else:
+        print("\n| input | binpose ms | recall (> half visible) | precision | centroid | OpenCV ms, recall |")
+        print("|---|---|---|---|---|---|")
+    for i in noisy:
+        b, o = rows.get((i, "binpose")), rows.get((i, "opencv-sample"))
+        if b is None:
+            continue
+        noise = f" {b['noise_mm']:.2f} | {b['k_normals']} |" if full else ""
+        error = f"{b['centroid_mm']:.2f} mm / {b['angle_deg']:.1f}°" if full else f"{b['centroid_mm']:.2f} mm"
+        peer = (f"{o['detect_ms_median']:.0f}, {pct(o['recall'])}" + (f", {pct(o['precision'])}" if full else "")) if o else "-"
+        print(f"| {i} |{noise} {b['detect_ms_median']:.0f} | {pct(b['recall'])} ({pct(b['recall_over_half_visible'])}) "
+              f"| {pct(b['precision'])} | {error} | {peer} |")
+
+
 def main():
     with open(sys.argv[1]) as f:
         data = json.load(f)
@@ -34,15 +53,7 @@ def main():
         print(f"| {i} | {b['detect_ms_median']:.0f} | {pct(b['recall'])} ({pct(b['recall_over_half_visible'])}) | {pct(b['precision'])} "
               f"| {b['centroid_mm']:.2f} mm / {b['angle_deg']:.2f}° | {peer(t)} | {peer(o)} | {speedup.get(i, float('nan')):.1f}x |")
 
-    print("\n| input | binpose ms | recall (> half visible) | precision | centroid | OpenCV ms, recall |")
-    print("|---|---|---|---|---|---|")
-    for i in noisy:
-        b, o = rows.get((i, "binpose")), rows.get((i, "opencv-sample"))
-        if b is None:
-            continue
-        peer = f"{o['detect_ms_median']:.0f}, {pct(o['recall'])}" if o else "-"
-        print(f"| {i} | {b['detect_ms_median']:.0f} | {pct(b['recall'])} ({pct(b['recall_over_half_visible'])}) | {pct(b['precision'])} "
-              f"| {b['centroid_mm']:.2f} mm | {peer} |")
+    sensor_table(noisy, rows, full=False)
 
     print("\n| input | method | detect ms | train ms | found | recall | > half visible | precision | centroid mm | angle ° | peak MiB |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
@@ -55,16 +66,7 @@ def main():
                   f"| {pct(r['recall_over_half_visible'])} | {pct(r['precision'])} | {r['centroid_mm']:.2f} | {r['angle_deg']:.2f} "
                   f"| {r['peak_above_input_mib']:.0f} |")
 
-    print("\n| input | noise mm | k | binpose ms | recall (> half visible) | precision | centroid / angle | OpenCV ms, recall, precision |")
-    print("|---|---|---|---|---|---|---|---|")
-    for i in noisy:
-        b, o = rows.get((i, "binpose")), rows.get((i, "opencv-sample"))
-        if b is None:
-            continue
-        peer = f"{o['detect_ms_median']:.0f}, {pct(o['recall'])}, {pct(o['precision'])}" if o else "-"
-        print(f"| {i} | {b['noise_mm']:.2f} | {b['k_normals']} | {b['detect_ms_median']:.0f} | {pct(b['recall'])} "
-              f"({pct(b['recall_over_half_visible'])}) | {pct(b['precision'])} | {b['centroid_mm']:.2f} mm / {b['angle_deg']:.1f}° | {peer} |")
-
+    sensor_table(noisy, rows, full=True)
 
 if __name__ == "__main__":
     main()
