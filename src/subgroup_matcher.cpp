@@ -178,11 +178,12 @@ bool Matcher::stands(const Pose& pose, float score, const Evidence& e, std::span
   if (score < p.min_score) return false;
   if (e.visibleSupport() < p.min_visible_support) return false;  // met by the scan only in passing
   if (sunk(pose)) return false;  // inside the floor, a wall or the table
-  if (sunkBehindFace(pose, support, e)) return false;  // inside a surface that goes on from its face
-  return outlineStandsOut(pose, support, laid);
+  const std::optional<Plane> face = faceOf(support);  // the scan shows it one flat face
+  if (sunkBehindFace(pose, face, e)) return false;  // inside a surface that goes on from its face
+  return outlineStandsOut(pose, face, laid);
 }
 
-bool Matcher::sunkBehindFace(const Pose& pose, std::span<const std::uint32_t> support, const Evidence& e) const {
+bool Matcher::sunkBehindFace(const Pose& pose, const std::optional<Plane>& face, const Evidence& e) const {
   // A right pose seen by one face shows nothing of itself hidden behind that face's plane; a
   // pose laid on a patch of a larger surface (a table that no background plane fits: warped, or
   // stepped by a sensor's disparity quanta) has the rest of its body there, hidden by that
@@ -190,13 +191,12 @@ bool Matcher::sunkBehindFace(const Pose& pose, std::span<const std::uint32_t> su
   // then among much else that hides them: those points must also be a quarter of all it hides.
   constexpr float kMostBehindFace = 0.1f;   // of the visible points (Sinking::share)
   constexpr float kMostOfOccluded = 0.25f;  // of those the scan hides (Evidence::occluded)
-  const std::optional<Plane> face = faceOf(support);
   if (!face) return false;
   const Sinking s = evidence.sunkBehind(*face, pose, scored_model, p.verify_tolerance, db.model().sample_radius);
   return s.share() > kMostBehindFace && static_cast<float>(s.sunk) > kMostOfOccluded * static_cast<float>(e.occluded);
 }
 
-bool Matcher::outlineStandsOut(const Pose& pose, std::span<const std::uint32_t> support, bool laid) const {
+bool Matcher::outlineStandsOut(const Pose& pose, const std::optional<Plane>& face, bool laid) const {
   constexpr int kMinJudged = 4;         // one or two coincidences do not decide
   constexpr int kMinDropJudged = 8;     // a drop is missing by chance on a short outline
   // A pose laid on one flat face (face_hypotheses.hpp) has no evidence of the part's shape
@@ -212,7 +212,7 @@ bool Matcher::outlineStandsOut(const Pose& pose, std::span<const std::uint32_t> 
   if (o.judged >= kMinJudged && o.share() > p.max_outline_share) return false;  // a face laid on a larger surface
   if (o.judged < kMinDropJudged || o.droppedShare() >= p.min_outline_drop) return true;
   // Nothing falls away around it: it stands only where the scan shows more of it than one plane.
-  return !faceOf(support);
+  return !face;
 }
 
 std::optional<Plane> Matcher::faceOf(std::span<const std::uint32_t> support) const {

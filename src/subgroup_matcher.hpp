@@ -118,17 +118,17 @@ struct Matcher {
   /// pose laid on one flat face).
   [[nodiscard]] bool stands(const Pose& pose, float score, const Evidence& e, std::span<const std::uint32_t> support,
                             bool laid = false) const;
-  /// Whether the pose, when its support lies on one plane (faceOf), has more than a tenth of its
-  /// visible points behind that plane where the scan shows the plane in front of them
-  /// (SceneEvidence::sunkBehind), and those are more than a quarter of the points the scan hides
-  /// (e.occluded): a body sunk into a surface that goes on from its face.
-  [[nodiscard]] bool sunkBehindFace(const Pose& pose, std::span<const std::uint32_t> support, const Evidence& e) const;
+  /// Whether the pose, when its support lies on one plane (`face`: faceOf of its support), has
+  /// more than a tenth of its visible points behind that plane where the scan shows the plane in
+  /// front of them (SceneEvidence::sunkBehind), and those are more than a quarter of the points
+  /// the scan hides (e.occluded): a body sunk into a surface that goes on from its face.
+  [[nodiscard]] bool sunkBehindFace(const Pose& pose, const std::optional<Plane>& face, const Evidence& e) const;
   /// Whether the posed part's outline tells it from the scan around it (SceneEvidence::outline):
   /// the scan's surface does not go on past it at more than max_outline_share of it, and where
-  /// the support lies on one plane, the scan falls away behind at least min_outline_drop of it.
-  /// A pose `laid` on one flat face (face_hypotheses.hpp) must also fall away behind 40 % of it,
-  /// whatever those two settings.
-  [[nodiscard]] bool outlineStandsOut(const Pose& pose, std::span<const std::uint32_t> support, bool laid = false) const;
+  /// the support lies on one plane (`face`: faceOf of the support), the scan falls away behind at
+  /// least min_outline_drop of it. A pose `laid` on one flat face (face_hypotheses.hpp) must also
+  /// fall away behind 40 % of it, whatever those two settings.
+  [[nodiscard]] bool outlineStandsOut(const Pose& pose, const std::optional<Plane>& face, bool laid = false) const;
   /// The plane that the support's scan points lie on, when 80 % of them or more lie within two
   /// verification tolerances of their least-squares plane: the scan shows the part by one flat
   /// face. None otherwise.
