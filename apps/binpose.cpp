@@ -250,6 +250,7 @@ std::string resultJson(const binpose::DetectionResult& r, const binpose::Detecti
   j["sampled_points"] = r.sampled_points;
   j["noise_mm"] = r.noise_mm;
   j["k_normals"] = r.k_normals;
+  j["normal_radius_mm"] = r.normal_radius;
   j["least_score"] = r.least_score;
   j["plane_points"] = r.plane_points;
   j["subgroups"] = r.subgroups;

@@ -97,6 +97,7 @@ void countStages(const PreparedScan& prepared, std::size_t groups, const MatchSt
   result.sampled_points = prepared.sampled_points;
   result.noise_mm = prepared.noise.sigma;
   result.k_normals = prepared.params.k_normals;
+  result.normal_radius = prepared.params.normal_radius;
   const StageSettings& p = prepared.params;
   result.least_score = p.verify ? std::max(p.min_score, p.report_score) : 0.0f;  // no score without verification
   result.plane_points = prepared.plane_points;

@@ -242,6 +242,21 @@ Points pixelNormals(const PixelNeighbours& pixels, const Points& cloud, std::spa
   return normals;
 }
 
+Points radiusNormals(const PointGrid& grid, const Points& cloud, std::span<const std::uint32_t> chosen, float radius,
+                     const Vec3& viewpoint) {
+  Points normals(chosen.size(), Vec3::Zero());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chosen.size(), 64), [&](const auto& range) {
+    std::vector<std::uint32_t> idx;
+    for (std::size_t i = range.begin(); i != range.end(); ++i) {
+      const Vec3& q = cloud[chosen[i]];
+      if (!q.allFinite()) continue;
+      grid.within(q, radius, idx);
+      normals[i] = normalFrom(cloud, q, idx.data(), idx.size(), viewpoint);  // sorted there: one sum order
+    }
+  });
+  return normals;
+}
+
 void finishNormals(const PointGrid& grid, const Points& cloud, std::span<const std::uint32_t> chosen,
                    std::span<const std::uint32_t> deferred, int k, const Vec3& viewpoint, Points& normals,
                    std::vector<PendingFit>* pending) {

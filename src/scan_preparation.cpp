@@ -89,6 +89,7 @@ Points orientedNormals(const PointCloud& scan, const StageSettings& p, PreparedS
       std::erase_if(chosen, [&](std::uint32_t i) { return (scan.points[i] - p.viewpoint).norm() >= out.noise.far_range; });
   };
   const auto normalsFor = [&] {
+    if (out.params.normal_radius > 0) return;  // radiusNormals, once the grid is built
     normals = pixelNormals(*out.pixels, scan.points, chosen, out.params.k_normals, p.viewpoint, deferred, &grid_ready, late);
   };
   tbb::parallel_invoke(
@@ -103,6 +104,10 @@ Points orientedNormals(const PointCloud& scan, const StageSettings& p, PreparedS
   if (!out.pixels->usable()) {  // an unorganized scan: the grid answers every search
     measure(gridQuery(*out.grid, scan.points));
     normalsFor();
+  }
+  if (out.params.normal_radius > 0) {
+    if (late != nullptr) late->assign(chosen.size(), PendingFit{});  // none left pending
+    return radiusNormals(*out.grid, scan.points, chosen, out.params.normal_radius, p.viewpoint);
   }
   finishNormals(*out.grid, scan.points, chosen, deferred, out.params.k_normals, p.viewpoint, normals, late);
   return normals;

@@ -73,6 +73,7 @@ StageSettings stageSettings(const DetectionParams& params, float model_diameter)
   s.icp_max_distance *= k;
   s.verify_tolerance *= k;
   s.far_noise *= k;
+  s.normal_max_radius *= k;
   return s;
 }
 
@@ -93,6 +94,7 @@ void validateStages(const StageSettings& s) {
   positive(s.vote_radius, "vote_radius");
   nonNegative(s.plane_min_area, "plane_min_area");
   nonNegative(s.far_noise, "far_noise");
+  nonNegative(s.normal_max_radius, "normal_max_radius");
   positive(s.plane_tolerance, "plane_tolerance");
   nonNegative(s.plane_hole, "plane_hole");
   nonNegative(s.candidate_spacing, "candidate_spacing");

@@ -22,6 +22,12 @@ struct StageSettings : DetectionParams {
   /// mm; 1.2 mm for the 60 mm part: 2 % of its diameter) and three times noisier than nearer
   /// (farNoisyRange, noise.hpp): a room's far walls behind the bin (0: none left out).
   float far_noise = 1.2f;
+  /// ... and where the noise wants more neighbours than the pixel search answers, fit each
+  /// normal to every scan point within a radius set from the noise (noise.cpp), at most this (mm;
+  /// for the 60 mm part 0.15 of its diameter: the bends and edges the votes tell a part by stay
+  /// sharper than that).
+  float normal_max_radius = 9.0f;
+  float normal_radius = 0.0f;  ///< that radius, set from the noise (mm; 0: the k_normals nearest)
   /// ... and drop a depth image's flying pixels, which lie between two surfaces (flying_pixels.hpp).
   bool remove_flying_pixels = true;
   /// Take the bin's floor and walls (connected flat patches of at least plane_min_area) out of

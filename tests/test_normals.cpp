@@ -58,6 +58,41 @@ TEST(Normals, EstimatedSphereNormalsFaceTheSensor) {
   EXPECT_LT(sum / queries.size(), 3.0);  // mean error of a 6-neighbour fit on a 30 mm sphere
 }
 
+// A noisy depth sensor's sphere (1.5 mm of noise along the ray, points 1.5 mm apart): 32
+// nearest neighbours reach about 5 mm, every point within 12 mm averages four times as many
+// over a lever arm twice as long, and the normals come out closer to the radial direction.
+TEST(Normals, ARadiusWiderThanTheNearestNeighboursSmoothsNoise) {
+  const Vec3 centre(0, 0, 800);
+  constexpr float kRadius = 60.0f, kSpacing = 1.5f, kNoise = 1.5f;
+  Rng rng(3);
+  Points cloud;
+  for (float x = -40; x <= 40; x += kSpacing)
+    for (float y = -40; y <= 40; y += kSpacing) {
+      const float z = centre.z() - std::sqrt(kRadius * kRadius - x * x - y * y);
+      const Vec3 p(x, y, z);
+      cloud.push_back(p + kNoise * rng.gaussian() * p.normalized());  // noise along the ray
+    }
+  std::vector<std::uint32_t> chosen;
+  for (std::uint32_t i = 0; i < cloud.size(); i += 37) chosen.push_back(i);
+  const PointGrid grid(cloud);
+  Points queries;
+  for (const auto i : chosen) queries.push_back(cloud[i]);
+  const Points nearest = estimateNormals(grid, cloud, queries, 32, Vec3::Zero());
+  const Points wide = radiusNormals(grid, cloud, chosen, 12.0f, Vec3::Zero());
+  const auto meanError = [&](const Points& normals) {
+    double sum = 0;
+    for (std::size_t k = 0; k < chosen.size(); ++k) {
+      EXPECT_GT(normals[k].dot(-queries[k]), 0.0f) << "normal must face the sensor at the origin";
+      sum += deg(std::acos(std::min(1.0f, normals[k].dot((queries[k] - centre).normalized()))));
+    }
+    return sum / static_cast<double>(chosen.size());
+  };
+  const double e_nearest = meanError(nearest), e_wide = meanError(wide);
+  std::printf("mean normal error: 32 nearest %.1f deg, within 12 mm %.1f deg\n", e_nearest, e_wide);
+  EXPECT_LT(e_wide, 0.5 * e_nearest);
+  EXPECT_LT(e_wide, 6.0);
+}
+
 TEST(Normals, MeshModelNormalsOfSphereAreRadial) {
   ModelParams params;
   const OrientedModel model = prepareModel(makeSphere(30, 4), params);

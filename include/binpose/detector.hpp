@@ -36,6 +36,7 @@ struct DetectionResult {
   std::size_t sampled_points = 0;  ///< oriented points after sub-sampling
   float noise_mm = 0;              ///< the scan's noise, 1 sigma, measured on it (plane-fit residuals)
   int k_normals = 0;               ///< the normals' neighbours used (k_normals, raised for a noisy scan)
+  float normal_radius = 0.0f;      ///< mm: the normals fitted to every point within it (a very noisy scan; 0: k_normals)
   float least_score = 0;           ///< the least score reported: min_score, raised on a rough scan (0: not verified)
   std::size_t plane_points = 0;    ///< ... of them on large planes (floor, walls), left out of voting
   std::size_t subgroups = 0;       ///< sub-groups created

@@ -37,6 +37,14 @@ struct PendingFit {
   Eigen::Vector3d lambda;
 };
 
+/// Normals of the chosen cloud points (indices `chosen`) from every cloud point within `radius`
+/// of each (a metric neighbourhood, for a scan too noisy for any k the pixel search answers:
+/// StageSettings::normal_radius), each oriented towards `viewpoint`; a zero normal where fewer
+/// than three points or a degenerate set lie within it. Parallel; the same normals whatever the
+/// thread count.
+Points radiusNormals(const PointGrid& grid, const Points& cloud, std::span<const std::uint32_t> chosen, float radius,
+                     const Vec3& viewpoint);
+
 /// That estimate in two halves, the first while the grid is being built: the normals of the
 /// chosen points whose k nearest `pixels` proves, and of the others through the grid once
 /// `grid` (when given) holds it; the places in `chosen` of those left over are listed in
