@@ -37,6 +37,9 @@ constexpr int kMostNeighbours = 32;
 /// alone: 279 and 262).
 constexpr float kSigmasOfNormalReach = 8.0f;
 constexpr float kMostNeighboursReach = 2.0f;
+/// ... and at most this many times the reach of 8, so that a fit holds at most about 8 x 8^2 =
+/// 512 points whatever the scan (the bench's noisy bins: 23-27 mm, never reached).
+constexpr float kWidestNormalReach = 8.0f;
 /// Over this tilt (twice the sound one) the normals stay rough even on kMostNeighbours (the
 /// simulated Kinect-class bins read 0.43, the real IC-BIN frames 0.24-0.27; the industrial model
 /// 0.15, the ideal sensor 0.07-0.11), and a symmetric part's pairs are let through at angles up to
@@ -170,7 +173,7 @@ StageSettings adaptedToNoise(const StageSettings& p, const NoiseEstimate& noise)
   if (tilt > kSoundTilt) {
     const auto k = static_cast<int>(std::lround(static_cast<float>(p.k_normals) * tilt / kSoundTilt));
     a.k_normals = std::clamp(k, p.k_normals, std::max(p.k_normals, kMostNeighbours));
-    const float radius = std::min(kSigmasOfNormalReach * noise.sigma, p.normal_max_radius);
+    const float radius = std::min({kSigmasOfNormalReach * noise.sigma, p.normal_max_radius, kWidestNormalReach * noise.reach});
     if (k > kMostNeighbours && radius > kMostNeighboursReach * noise.reach) a.normal_radius = radius;
   }
   if (tilt > kRoughTilt) a.revolution_angle_tolerance = std::max(p.revolution_angle_tolerance, kRoughRevolutionTolerance);

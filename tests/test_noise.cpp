@@ -100,6 +100,21 @@ TEST(Noise, OnlyANoisyScanRaisesTheValues) {
   EXPECT_EQ(adaptedToNoise(p, {1.0f, 2.0f, 0}).k_normals, p.k_normals);  // no estimate: no change
 }
 
+// Only a scan that wants more neighbours than the pixel search's 32 fits its normals over a
+// radius: 8 sigmas, at most 0.15 of the part's diameter and 8 times the reach of 8 neighbours,
+// and only where that reaches past the 32 nearest (twice that reach).
+TEST(Noise, OnlyAScanTooNoisyFor32NeighboursFitsNormalsOverARadius) {
+  const StageSettings p = stageSettings(defaultPreset(), 60.0f);  // normal_max_radius 9 mm
+  EXPECT_EQ(adaptedToNoise(p, {0.05f, 1.5f, 256}).normal_radius, 0.0f);  // clean
+  EXPECT_EQ(adaptedToNoise(p, {0.54f, 2.0f, 256}).normal_radius, 0.0f);  // tilt 0.27: 27 neighbours
+  EXPECT_FLOAT_EQ(adaptedToNoise(p, {0.8f, 2.0f, 256}).normal_radius, 6.4f);  // tilt 0.4: 8 sigmas
+  EXPECT_FLOAT_EQ(adaptedToNoise(p, {1.6f, 3.4f, 256}).normal_radius, 9.0f);  // the part's limit
+  const StageSettings tiny = stageSettings(defaultPreset(), 6.0f);  // limit 0.9 mm: within the 32 nearest
+  EXPECT_EQ(adaptedToNoise(tiny, {0.8f, 2.0f, 256}).normal_radius, 0.0f);
+  const StageSettings large = stageSettings(defaultPreset(), 6000.0f);  // limit 900 mm
+  EXPECT_FLOAT_EQ(adaptedToNoise(large, {50.0f, 5.0f, 256}).normal_radius, 40.0f);  // 8 reaches
+}
+
 // Bands of ranges, each 1.25 times the one before: the first judged band (12 fits or more) noisier
 // than the limit and three times noisier than the least noisy band nearer than it starts what is
 // left out. A noisy band nearer than every quieter one, or one of few fits, is kept.
