@@ -77,6 +77,14 @@ constexpr float kRoughPlaneAngle = 0.96f;
 /// of it. Set with the 24-neighbour estimate on the bench's structured-light bins and the IC-BIN
 /// frames (3.3 and 2.2 let far, noisy background through on a real Kinect frame).
 constexpr float kSigmasOfConsistency = 2.3f;
+/// The plane search's fit band (PlaneParams::fit_band): this many sigmas, where that is at most
+/// kMostFitBandShare of the plane tolerance (a scan quieter than 0.25 mm for a 60 mm part). On a
+/// noisier one surfaces a few millimetres apart are hard to tell apart by their points: a Kinect
+/// frame's table comes in slabs 3-5 mm apart. There the band (the tolerance of a 120 mm part is
+/// 3 mm, 3 sigma of IC-BIN's first frame 2.8 mm) placed a bracket that is not in it 17 times,
+/// against 13.
+constexpr float kSigmasOfFitBand = 3.0f;
+constexpr float kMostFitBandShare = 0.5f;
 /// The verification's tolerance at least this many sigmas: 87 % of a right surface's points.
 constexpr float kSigmasOfSupport = 1.5f;
 /// farNoisyRange's bands: each this many times as far as the one before; a band judged from
@@ -179,6 +187,7 @@ StageSettings adaptedToNoise(const StageSettings& p, const NoiseEstimate& noise)
   if (tilt > kRoughTilt) a.revolution_angle_tolerance = std::max(p.revolution_angle_tolerance, kRoughRevolutionTolerance);
   a.e_gmax = std::max(p.e_gmax, kSigmasOfConsistency * noise.sigma);
   a.plane_tolerance = std::max(p.plane_tolerance, kSigmasOfConsistency * noise.sigma);
+  if (kSigmasOfFitBand * noise.sigma <= kMostFitBandShare * a.plane_tolerance) a.plane_fit_band = kSigmasOfFitBand * noise.sigma;
   if (tilt > kPlaneTilt) {
     const float rise = rampShare(tilt, kPlaneTilt, kRoughPlaneTilt);
     a.plane_max_angle = std::max(p.plane_max_angle, p.plane_max_angle + rise * (kRoughPlaneAngle - p.plane_max_angle));

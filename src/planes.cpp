@@ -149,10 +149,11 @@ std::vector<std::vector<std::uint32_t>> linkedPatches(const Points& points, cons
 
 namespace {
 
-/// How many probe points lie on `plane` (largePlanes's inlier test, the same sums in the same
-/// order), on SIMD lanes (300 hypotheses a plane made this loop half of the plane search's time).
+/// How many probe points lie on `plane` (largePlanes's inlier test, within `within` of it, the
+/// same sums in the same order), on SIMD lanes (300 hypotheses a plane made this loop half of
+/// the plane search's time).
 __attribute__((target_clones("avx2", "default")))
-std::size_t countOnPlane(const detail::OrientedLanes& probe, const Plane& plane, float tolerance, float min_cos) {
+std::uint32_t countOnPlane(const detail::OrientedLanes& probe, const Plane& plane, float within, float min_cos) {
   const float* x = probe.c[0].data();
   const float* y = probe.c[1].data();
   const float* z = probe.c[2].data();
@@ -162,7 +163,7 @@ std::size_t countOnPlane(const detail::OrientedLanes& probe, const Plane& plane,
   const float a = plane.normal.x(), b = plane.normal.y(), c = plane.normal.z(), d = plane.d;
   std::uint32_t count = 0;
   for (std::size_t k = 0; k < probe.size; ++k) {
-    const bool near = std::abs(a * x[k] + b * y[k] + c * z[k] - d) <= tolerance;
+    const bool near = std::abs(a * x[k] + b * y[k] + c * z[k] - d) <= within;
     const bool aligned = std::abs(a * nx[k] + b * ny[k] + c * nz[k]) >= min_cos;
     count += static_cast<std::uint32_t>(near & aligned);
   }
@@ -181,23 +182,6 @@ void checkPlaneInputs(const Points& points, const Points& normals, float density
     throw Error(fmt::format("plane removal needs a finite hole width >= 0, got {}", params.hole));
 }
 
-/// The first of the hypotheses with the most probe points on them, scored side by side.
-Plane bestHypothesis(const detail::OrientedLanes& probe_points, const std::vector<Plane>& hypotheses, float tolerance,
-                     float min_cos, std::vector<std::size_t>& counts) {
-  counts.resize(hypotheses.size());
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, hypotheses.size(), 32), [&](const auto& range) {
-    for (std::size_t t = range.begin(); t < range.end(); ++t) counts[t] = countOnPlane(probe_points, hypotheses[t], tolerance, min_cos);
-  });
-  std::size_t best_count = 0;
-  Plane best;
-  for (std::size_t t = 0; t < hypotheses.size(); ++t)
-    if (counts[t] > best_count) {
-      best_count = counts[t];
-      best = hypotheses[t];
-    }
-  return best;
-}
-
 /// The least-squares plane of `inliers` (fitPlaneNormal, eq. 30-38, through their centroid), its
 /// normal on the side of `like`'s: a hypothesis takes one point's normal, as noisy as the sensor,
 /// and a plane tilted by it leaves the far side of a floor out of tolerance.
@@ -205,6 +189,73 @@ Plane refitted(const Points& points, std::span<const std::uint32_t> inliers, con
   Plane fit;
   if (!fitPlane(points, inliers, fit)) return like;
   return fit.normal.dot(like.normal) < 0 ? Plane{-fit.normal, -fit.d, {}} : fit;
+}
+
+/// The fit band in use: PlaneParams::fit_band where it is narrower than the tolerance, else 0.
+float fitBand(const PlaneParams& params) {
+  return params.fit_band > 0 && params.fit_band < params.tolerance ? params.fit_band : 0.0f;
+}
+
+/// With a fit band, the hypotheses with the most probe points within the tolerance that are
+/// locally optimised (LO-RANSAC, Chum, Matas & Kittler 2003) and compared on the points within
+/// the band, and the refits of each.
+constexpr std::size_t kLocallyOptimised = 8;
+constexpr int kLocalRefits = 3;
+
+/// `plane` refitted kLocalRefits times to the probe points within `band` of it (fewer than 3: as
+/// it is), and how many lie within the band of the last fit.
+std::pair<Plane, std::uint32_t> locallyOptimised(const Points& points, std::span<const std::uint32_t> probe,
+                                                 const detail::OrientedLanes& probe_points, Plane plane, float band,
+                                                 float min_cos) {
+  std::vector<std::uint32_t> near;
+  for (int fit = 0; fit < kLocalRefits; ++fit) {
+    near.clear();
+    const Vec3& n = plane.normal;
+    for (std::size_t k = 0; k < probe.size(); ++k) {
+      const float side = n.x() * probe_points.c[0][k] + n.y() * probe_points.c[1][k] + n.z() * probe_points.c[2][k] - plane.d;
+      const float along = n.x() * probe_points.c[3][k] + n.y() * probe_points.c[4][k] + n.z() * probe_points.c[5][k];
+      if (std::abs(side) <= band && std::abs(along) >= min_cos) near.push_back(probe[k]);
+    }
+    plane = refitted(points, near, plane);
+  }
+  return {plane, countOnPlane(probe_points, plane, band, min_cos)};
+}
+
+/// The first of the hypotheses, scored side by side, with the most probe points within the
+/// tolerance. With a fit band (PlaneParams::fit_band), of the kLocallyOptimised with the most,
+/// the one whose local optimisation holds the most within the band, as optimised: a plane tilted
+/// through two parallel surfaces holds as many within the tolerance as either alone, in stripes,
+/// and its fit to the stripes stays tilted; a hypothesis off one surface by its point's normal
+/// holds a stripe of it, and its fit settles on it.
+Plane bestHypothesis(const Points& points, std::span<const std::uint32_t> probe, const detail::OrientedLanes& probe_points,
+                     const std::vector<Plane>& hypotheses, const PlaneParams& params, float min_cos,
+                     std::vector<std::uint32_t>& counts) {
+  counts.resize(hypotheses.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, hypotheses.size(), 32), [&](const auto& range) {
+    for (std::size_t t = range.begin(); t < range.end(); ++t)
+      counts[t] = countOnPlane(probe_points, hypotheses[t], params.tolerance, min_cos);
+  });
+  std::vector<std::uint32_t> order(hypotheses.size());
+  std::iota(order.begin(), order.end(), 0u);
+  std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return counts[a] > counts[b]; });
+  if (order.empty() || counts[order.front()] == 0) return {};
+  const float band = fitBand(params);
+  if (band == 0.0f) return hypotheses[order.front()];
+  // Optimised side by side, each into its own slot, then compared in order.
+  const std::size_t tried = std::min(kLocallyOptimised, order.size());
+  std::vector<std::pair<Plane, std::uint32_t>> optimised(tried);
+  tbb::parallel_for(std::size_t{0}, tried, [&](std::size_t r) {
+    if (counts[order[r]] > 0)
+      optimised[r] = locallyOptimised(points, probe, probe_points, hypotheses[order[r]], band, min_cos);
+  });
+  Plane best = optimised.front().first;
+  std::uint32_t best_near = optimised.front().second;
+  for (std::size_t r = 1; r < tried; ++r)
+    if (optimised[r].second > best_near) {
+      best = optimised[r].first;
+      best_near = optimised[r].second;
+    }
+  return best;
 }
 
 /// A plane's refits until its inliers grow by less than kRefitGrowth, at most kMostRefits. A
@@ -271,6 +322,29 @@ struct Background {
   bool hides_nothing_through = false;  ///< Behind::seen_through at most max_behind of its inliers
   std::vector<std::vector<std::uint32_t>> patches;
 };
+
+/// Whether what a plane hides (pointsBehind) is more than max_behind allows by both tests.
+bool hidesMuch(const Behind& behind, std::size_t points, std::size_t inliers, float max_behind) {
+  return static_cast<float>(behind.below) > max_behind * static_cast<float>(points) &&
+         static_cast<float>(behind.seen_through) > max_behind * static_cast<float>(inliers);
+}
+
+/// The background planes that hide a parallel surface a few millimetres behind them, found after
+/// them (pointsBehind's second count, now with every plane found), dropped where largePlanes
+/// drops them when the surface comes first: in pieces each smaller than min_count, a layer of
+/// parts lying flat on it. The insides of caps lying open side up, 3 mm above the floor, can show
+/// more than the floor between them, and come first. With a fit band (a scan far quieter than the
+/// tolerance), in any pieces: two such surfaces are two, not slabs of one noisy table, and the
+/// insides of caps touching each other join in one piece.
+void dropLayersFoundFirst(std::vector<Background>& background, const Points& points, const PlaneParams& params,
+                          std::span<const std::uint8_t> found_in, const std::vector<Plane>& found) {
+  std::erase_if(background, [&](const Background& b) {
+    if ((!b.patches.empty() && fitBand(params) == 0.0f) || !b.plane.extent) return false;
+    const Behind on_found =
+        pointsBehind(points, b.plane, *b.plane.extent, params.tolerance, params.viewpoint, found_in, found).second;
+    return hidesMuch(on_found, points.size(), b.inliers.size(), params.max_behind);
+  });
+}
 
 /// b's connected patches of min_count points or more.
 void patchesOf(Background& b, const Points& points, float link, std::size_t min_count) {
@@ -353,7 +427,8 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
   const auto min_count = static_cast<std::size_t>(std::ceil(params.min_area * density));
   const float min_cos = std::cos(params.max_angle);
   Rng rng(params.seed);
-  std::vector<std::uint32_t> left, probe, inliers, drawn;
+  std::vector<std::uint32_t> left, probe, inliers, fitted, drawn;
+  const float band = fitBand(params);
   auto finish = [&](std::span<const std::uint32_t> which) {
     if (late != nullptr) late->finish(which);
   };
@@ -369,7 +444,7 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
   };
   detail::OrientedLanes probe_points;  // the points a RANSAC hypothesis is scored on
   std::vector<Plane> hypotheses;
-  std::vector<std::size_t> counts;
+  std::vector<std::uint32_t> counts;
   // A background plane's inliers split into patches (a flood fill, a third of the search's
   // time) while the next rounds look for planes: the next round's points do not depend on it
   // (every inlier is tried, whatever patch it falls in), and rounds' inliers are disjoint.
@@ -396,14 +471,21 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
     finish(drawn);
     hypotheses.clear();
     for (const auto s : drawn) hypotheses.push_back({normals[s], normals[s].dot(points[s]), {}});
-    Plane best = bestHypothesis(probe_points, hypotheses, params.tolerance, min_cos, counts);
-    // The hypothesis's inliers, then those of their own plane, refitted until they stop growing.
+    Plane best = bestHypothesis(points, probe, probe_points, hypotheses, params, min_cos, counts);
+    // The hypothesis's inliers, then those of their own plane, refitted until they stop growing;
+    // with a fit band, refitted to those within it: from a hypothesis tilted a little off one
+    // of two parallel surfaces, the inliers within the tolerance hold stripes of both, and their
+    // fit settles midway; those within the band lie on one, and each refit widens its stripe.
     for (int fit = 0; fit <= kMostRefits; ++fit) {
-      if (fit > 0) best = refitted(points, inliers, best);
+      if (fit > 0) best = refitted(points, band > 0 ? fitted : inliers, best);
       const std::size_t before = inliers.size();
       inliers.clear();
+      fitted.clear();
       for (const auto i : left)
-        if (inlier(i, best)) inliers.push_back(i);
+        if (inlier(i, best)) {
+          inliers.push_back(i);
+          if (best.distance(points[i]) <= band) fitted.push_back(i);
+        }
       if (fit > 1 && static_cast<float>(inliers.size()) <= (1.0f + kRefitGrowth) * static_cast<float>(before)) break;
     }
     if (inliers.size() < min_count) break;  // the largest plane left is too small: done
@@ -424,7 +506,7 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
     // The farthest surface, the bin's floor or a table: background for verification even where
     // what the parts leave of it is in pieces each smaller than min_count (those stay in the votes).
     Background* b = &background.emplace_back(Background{best, inliers, below, through, {}});
-    if (static_cast<float>(on_found.below) > most && static_cast<float>(on_found.seen_through) > most_through) {
+    if (hidesMuch(on_found, points.size(), inliers.size(), params.max_behind)) {
       // It hides a parallel surface found before it, a few millimetres behind. In pieces, each
       // smaller than min_count, it is a layer of parts lying flat on that surface (caps open side
       // up, brackets' plates) and no background. In one piece as large, it is another slab of a
@@ -436,6 +518,7 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
     flood.run([&, b] { patchesOf(*b, points, params.link, min_count); });
   }
   flood.wait();
+  dropLayersFoundFirst(background, points, params, found_in, found);
   const std::vector<Plane> kept = keptOfTheBin(background, most_inliers, points, params, plane);
   if (removed) removed->insert(removed->end(), kept.begin(), kept.end());
   return plane;

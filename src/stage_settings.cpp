@@ -81,6 +81,7 @@ PlaneParams planeParams(const StageSettings& s) {
   PlaneParams planes;
   planes.min_area = s.plane_min_area;
   planes.tolerance = s.plane_tolerance;
+  planes.fit_band = s.plane_fit_band;
   planes.max_angle = s.plane_max_angle;
   planes.link = kPlaneLinkSpacings / std::sqrt(s.rho_sub);
   planes.hole = s.plane_hole;

@@ -35,6 +35,8 @@ struct StageSettings : DetectionParams {
   bool remove_planes = true;
   float plane_min_area = 0.0f;   ///< mm^2; 0: the model's largest possible flat face (boundingFaceArea)
   float plane_tolerance = 1.5f;  ///< largest distance of a plane's point from it, mm
+  /// PlaneParams::fit_band, mm: set from the noise (noise.cpp; 0: the hypotheses' counts alone).
+  float plane_fit_band = 0.0f;
   /// Largest angle of a plane's point's normal from the plane's, radians (20 degrees;
   /// PlaneParams::max_angle; raised on a scan whose normals stay rough, noise.cpp).
   float plane_max_angle = 0.35f;

@@ -115,6 +115,21 @@ TEST(Noise, OnlyAScanTooNoisyFor32NeighboursFitsNormalsOverARadius) {
   EXPECT_FLOAT_EQ(adaptedToNoise(large, {50.0f, 5.0f, 256}).normal_radius, 40.0f);  // 8 reaches
 }
 
+// The plane search's fit band: 3 sigma where that is at most half the plane tolerance (1.5 mm for
+// a 60 mm part, raised to 2.3 sigma on a noisy scan), else none.
+TEST(Noise, OnlyAScanQuietUnderThePlaneToleranceGetsAPlaneFitBand) {
+  const StageSettings p = stageSettings(defaultPreset(), 60.0f);
+  EXPECT_FLOAT_EQ(adaptedToNoise(p, {0.1f, 1.5f, 256}).plane_fit_band, 0.3f);   // clean: 0.3 of 1.5 mm
+  EXPECT_FLOAT_EQ(adaptedToNoise(p, {0.2f, 1.5f, 256}).plane_fit_band, 0.6f);   // industrial
+  EXPECT_FLOAT_EQ(adaptedToNoise(p, {0.25f, 1.5f, 256}).plane_fit_band, 0.75f);  // half the tolerance
+  EXPECT_EQ(adaptedToNoise(p, {0.3f, 1.5f, 256}).plane_fit_band, 0.0f);         // 0.9 mm: over half
+  EXPECT_EQ(adaptedToNoise(p, {1.0f, 2.0f, 256}).plane_fit_band, 0.0f);         // tolerance 2.3 mm, band 3 mm
+  EXPECT_EQ(adaptedToNoise(p, {0.1f, 1.5f, 0}).plane_fit_band, 0.0f);           // no estimate
+  const StageSettings large = stageSettings(defaultPreset(), 120.0f);           // tolerance 3 mm
+  EXPECT_FLOAT_EQ(adaptedToNoise(large, {0.5f, 2.0f, 256}).plane_fit_band, 1.5f);
+  EXPECT_EQ(adaptedToNoise(large, {0.94f, 2.0f, 256}).plane_fit_band, 0.0f);    // a Kinect frame's 0.94 mm
+}
+
 // Bands of ranges, each 1.25 times the one before: the first judged band (12 fits or more) noisier
 // than the limit and three times noisier than the least noisy band nearer than it starts what is
 // left out. A noisy band nearer than every quieter one, or one of few fits, is kept.

@@ -16,6 +16,15 @@ namespace binpose {
 struct PlaneParams {
   float min_area = 6000.0f;   ///< smallest connected flat patch removed, mm^2 (larger than any face of the part)
   float tolerance = 1.5f;     ///< largest distance of a point from the plane, mm
+  /// A band about a plane narrower than the tolerance, mm (0, or as wide: none), for a scan far
+  /// quieter than the tolerance. There a plane tilted through two parallel surfaces a few
+  /// millimetres apart (a floor and the insides of caps lying open side up on it) holds as many
+  /// points within the tolerance as either surface alone, in stripes. With the band, the best
+  /// hypotheses are refitted to their points within it and compared on how many lie within it
+  /// (LO-RANSAC), a plane is refitted to its inliers within it, and a background plane with a
+  /// parallel one just behind it is a layer of parts on that one. The detector sets it to 3 sigma
+  /// of the scan's noise.
+  float fit_band = 0.0f;
   float max_angle = 0.35f;    ///< largest angle of a point's normal from the plane's normal, radians (20 degrees)
   float link = 10.0f;         ///< points closer than this are connected within one patch, mm
   /// Background only: a plane that hides more than this share of the points behind its extent
