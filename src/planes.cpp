@@ -235,14 +235,19 @@ Plane bestHypothesis(const Points& points, std::span<const std::uint32_t> probe,
     for (std::size_t t = range.begin(); t < range.end(); ++t)
       counts[t] = countOnPlane(probe_points, hypotheses[t], params.tolerance, min_cos);
   });
+  const float band = fitBand(params);
+  if (band == 0.0f) {  // the first with the most
+    const auto most = std::max_element(counts.begin(), counts.end());
+    return most == counts.end() || *most == 0 ? Plane{} : hypotheses[static_cast<std::size_t>(most - counts.begin())];
+  }
+  // The kLocallyOptimised with the most, the first of equal counts first.
   std::vector<std::uint32_t> order(hypotheses.size());
   std::iota(order.begin(), order.end(), 0u);
-  std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return counts[a] > counts[b]; });
-  if (order.empty() || counts[order.front()] == 0) return {};
-  const float band = fitBand(params);
-  if (band == 0.0f) return hypotheses[order.front()];
-  // Optimised side by side, each into its own slot, then compared in order.
   const std::size_t tried = std::min(kLocallyOptimised, order.size());
+  const auto more = [&](std::uint32_t a, std::uint32_t b) { return counts[a] > counts[b] || (counts[a] == counts[b] && a < b); };
+  std::partial_sort(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(tried), order.end(), more);
+  if (tried == 0 || counts[order.front()] == 0) return {};
+  // Optimised side by side, each into its own slot, then compared in order.
   std::vector<std::pair<Plane, std::uint32_t>> optimised(tried);
   tbb::parallel_for(std::size_t{0}, tried, [&](std::size_t r) {
     if (counts[order[r]] > 0)
@@ -484,7 +489,7 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
       for (const auto i : left)
         if (inlier(i, best)) {
           inliers.push_back(i);
-          if (best.distance(points[i]) <= band) fitted.push_back(i);
+          if (band > 0 && best.distance(points[i]) <= band) fitted.push_back(i);
         }
       if (fit > 1 && static_cast<float>(inliers.size()) <= (1.0f + kRefitGrowth) * static_cast<float>(before)) break;
     }
