@@ -35,6 +35,13 @@ constexpr int kMostCopies = 6;
 /// hypotheses each, and at most this many planes taken out of it.
 constexpr int kPieceTrials = 48;
 constexpr int kMostPieces = 6;
+/// A region is one plane when its points' RMS distance from their plane fit is at most this
+/// share of the plane tolerance (2.3 sigma of a noisy scan's noise: noise.cpp), about the noise
+/// itself; else it is split into the planes it holds (planarPieces). A flat face's region on a
+/// structured-light scan also takes in the first millimetres of a face bent away from it, where
+/// the smoothed normals turn gradually, and then outgrows the model's face (RMS 1.5-2.8 mm where
+/// the noise gives 1.2-1.4 mm).
+constexpr float kOnePlaneRms = 0.5f;
 /// k-means steps of a split (from farthest-point seeds, a few settle touching faces).
 constexpr int kSplitSteps = 8;
 /// ... and its extent along each principal axis (RMS from the centre) within this share of the face's.
@@ -216,7 +223,7 @@ std::vector<FlatRegion> flatRegions(const Matcher& m, const std::vector<char>& r
   for (auto& members : regionsOf(scene.points, left, kLinkSpacings * spacing, joins)) {
     if (members.size() < std::max<std::size_t>(fewest, 3)) continue;
     FlatRegion region = regionOf(m, std::move(members));
-    if (region.plane.rms <= m.p.plane_tolerance) {
+    if (region.plane.rms <= kOnePlaneRms * m.p.plane_tolerance) {
       if (region.area >= least_area) flat.push_back(std::move(region));
       continue;
     }
@@ -386,9 +393,11 @@ Scored refined(const Matcher& m, const Pose& start) {
 
 /// The laid pose the scan settles on: the shortlist's best refined. Where the scan supports
 /// another face, or the same turned otherwise (not by the part's symmetry), kMostRivalShare as
-/// well, each such rival is moved finer and refined too, and the best scoring pose is kept unless
-/// another comes within kTieShare of it. Without refinement a rival leaves the region, as no
-/// score can settle it.
+/// well, each such rival is moved finer and refined too. Of the refined poses that stand
+/// (Matcher::stands, as laid poses), the best scoring is kept unless another comes within
+/// kTieShare of it. A pose the scan rules out (sunk into the floor, its outline not falling away)
+/// neither wins nor ties: the best scoring pose may be one such, with a right one among its rivals.
+/// Without refinement a rival leaves the region, as no score can settle it.
 std::optional<Scored> settled(const Matcher& m, const ModelShape& shape, const PreparedModel& judged, const PlaneFit& plane,
                               const std::vector<Laid>& laid) {
   if (laid.empty()) return std::nullopt;
@@ -401,6 +410,9 @@ std::optional<Scored> settled(const Matcher& m, const ModelShape& shape, const P
   std::vector<Scored> poses;
   poses.push_back(refined(m, best.pose));
   for (const Laid& rival : rivals) poses.push_back(refined(m, finer(m, judged, plane, rival).pose));
+  // A pose the scan rules out (sunk into the floor, its outline not standing out) ties with none.
+  std::erase_if(poses, [&](const Scored& s) { return !m.stands(s.pose, s.evidence.score(), s.evidence, s.support, true); });
+  if (poses.empty()) return std::nullopt;
   const auto by_score = [](const Scored& a, const Scored& b) { return a.evidence.score() < b.evidence.score(); };
   const auto winner = std::max_element(poses.begin(), poses.end(), by_score);
   for (const Scored& other : poses)
@@ -451,13 +463,13 @@ void addFaceDetections(const std::vector<ModelFace>& faces, const Matcher& m, co
   for (const FlatRegion& region : regions) {
     const auto gone = std::count_if(region.members.begin(), region.members.end(), [&](std::uint32_t i) { return state.removed[i] != 0; });
     if (2 * static_cast<std::size_t>(gone) > region.members.size()) continue;  // a detection before explains it
+    // settled() keeps only poses that stand (as laid poses: standing out of the scan around them).
     std::optional<Scored> laid = settled(m, shape, judged, region.plane, shortlist(m, coarse, judged, faces, region));
     if (!laid || state.refoundAt(laid->pose, shape, p.refound_share)) continue;
     Hypothesis h;
     h.detection.pose = laid->pose;
     h.detection.score = laid->evidence.score();
     h.support = std::move(laid->support);
-    if (!m.stands(h.detection.pose, h.detection.score, laid->evidence, h.support, true)) continue;  // laid: it must stand out
     state.accept(std::move(h), p, shape, m.scene.points);
     if (state.enough) return;
   }
