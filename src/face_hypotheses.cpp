@@ -406,12 +406,16 @@ std::optional<Scored> settled(const Matcher& m, const ModelShape& shape, const P
   std::vector<Laid> rivals;
   for (const Laid& l : laid)
     if (l.support > kMostRivalShare * best.support && !shape.samePose(l.pose, best.pose)) rivals.push_back(l);
-  if (!m.p.refine) return rivals.empty() ? std::optional<Scored>(scored(m, best.pose)) : std::nullopt;
+  const auto ruledOut = [&](const Scored& s) { return !m.stands(s.pose, s.evidence.score(), s.evidence, s.support, true); };
   std::vector<Scored> poses;
-  poses.push_back(refined(m, best.pose));
-  for (const Laid& rival : rivals) poses.push_back(refined(m, finer(m, judged, plane, rival).pose));
-  // A pose the scan rules out (sunk into the floor, its outline not standing out) ties with none.
-  std::erase_if(poses, [&](const Scored& s) { return !m.stands(s.pose, s.evidence.score(), s.evidence, s.support, true); });
+  if (!m.p.refine) {
+    if (!rivals.empty()) return std::nullopt;
+    poses.push_back(scored(m, best.pose));
+  } else {
+    poses.push_back(refined(m, best.pose));
+    for (const Laid& rival : rivals) poses.push_back(refined(m, finer(m, judged, plane, rival).pose));
+  }
+  std::erase_if(poses, ruledOut);  // a pose the scan rules out neither wins nor ties
   if (poses.empty()) return std::nullopt;
   const auto by_score = [](const Scored& a, const Scored& b) { return a.evidence.score() < b.evidence.score(); };
   const auto winner = std::max_element(poses.begin(), poses.end(), by_score);
