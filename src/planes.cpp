@@ -271,6 +271,34 @@ Plane bestHypothesis(const Points& points, std::span<const std::uint32_t> probe,
 constexpr int kMostRefits = 10;
 constexpr float kRefitGrowth = 0.01f;
 
+/// With a fit band, a plane can settle through two parallel surfaces a few millimetres apart:
+/// a floor and the insides of caps lying open side up on it, about as many points each, meet a
+/// plane tilted by 1-2 degrees across the bin within the tolerance in stripes, and its refits
+/// stay there (the floor up to 3 mm behind it on one side). A background plane is the farthest
+/// surface, the floor and not what lies on it. Where the points within the tolerance of the
+/// plane moved kFartherTolerances tolerances behind it (away from the sensor), over its inliers'
+/// bounding rectangle and facing as it does, number kFartherLayerShare of those within its band,
+/// they are a farther surface: the plane is refitted to them and its refits run again.
+constexpr float kFartherLayerShare = 0.25f;
+constexpr float kFartherTolerances = 1.5f;
+/// A tilted plane's points just behind it hold stripes of both surfaces too, fewer of the nearer
+/// one each time: at most this many refits to them.
+constexpr int kFartherSteps = 3;
+
+/// The points of `left` that `inlier` takes for those of `plane` moved kFartherTolerances
+/// tolerances behind it (away from the sensor), over its inliers' bounding rectangle.
+template <class Inlier>
+std::vector<std::uint32_t> justBehind(const Points& points, std::span<const std::uint32_t> left, std::span<const std::uint32_t> inliers,
+                                      const Plane& plane, const PlaneParams& params, Inlier&& inlier) {
+  Plane behind = plane;
+  behind.d -= (plane.side(params.viewpoint) > 0 ? 1.0f : -1.0f) * kFartherTolerances * params.tolerance;
+  const PlaneFootprint footprint(points, inliers, plane, params.link, params.hole);
+  std::vector<std::uint32_t> farther;
+  for (const auto i : left)
+    if (footprint.within(points[i]) && inlier(i, behind)) farther.push_back(i);
+  return farther;
+}
+
 /// The points farther than 3 tolerances behind a plane, on the side away from the sensor.
 struct Behind {
   /// ... whose foot on the plane lies within its inliers' extent (their bounding rectangle on
@@ -481,17 +509,26 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
     // with a fit band, refitted to those within it: from a hypothesis tilted a little off one
     // of two parallel surfaces, the inliers within the tolerance hold stripes of both, and their
     // fit settles midway; those within the band lie on one, and each refit widens its stripe.
-    for (int fit = 0; fit <= kMostRefits; ++fit) {
-      if (fit > 0) best = refitted(points, band > 0 ? fitted : inliers, best);
-      const std::size_t before = inliers.size();
-      inliers.clear();
-      fitted.clear();
-      for (const auto i : left)
-        if (inlier(i, best)) {
-          inliers.push_back(i);
-          if (band > 0 && best.distance(points[i]) <= band) fitted.push_back(i);
-        }
-      if (fit > 1 && static_cast<float>(inliers.size()) <= (1.0f + kRefitGrowth) * static_cast<float>(before)) break;
+    const auto settle = [&] {
+      for (int fit = 0; fit <= kMostRefits; ++fit) {
+        if (fit > 0) best = refitted(points, band > 0 ? fitted : inliers, best);
+        const std::size_t before = inliers.size();
+        inliers.clear();
+        fitted.clear();
+        for (const auto i : left)
+          if (inlier(i, best)) {
+            inliers.push_back(i);
+            if (band > 0 && best.distance(points[i]) <= band) fitted.push_back(i);
+          }
+        if (fit > 1 && static_cast<float>(inliers.size()) <= (1.0f + kRefitGrowth) * static_cast<float>(before)) break;
+      }
+    };
+    settle();
+    for (int k = 0; band > 0 && k < kFartherSteps && inliers.size() >= min_count; ++k) {
+      const std::vector<std::uint32_t> farther = justBehind(points, left, inliers, best, params, inlier);
+      if (static_cast<float>(farther.size()) < kFartherLayerShare * static_cast<float>(fitted.size())) break;
+      best = refitted(points, farther, best);
+      settle();
     }
     if (inliers.size() < min_count) break;  // the largest plane left is too small: done
     for (const auto i : inliers) tried[i] = 1;  // small patches of it stay in the scene, and are not tried again
