@@ -286,13 +286,12 @@ constexpr float kFartherTolerances = 1.5f;
 constexpr int kFartherSteps = 3;
 
 /// The points of `left` that `inlier` takes for those of `plane` moved kFartherTolerances
-/// tolerances behind it (away from the sensor), over its inliers' bounding rectangle.
+/// tolerances behind it (away from the sensor), over its inliers' bounding rectangle (`footprint`).
 template <class Inlier>
-std::vector<std::uint32_t> justBehind(const Points& points, std::span<const std::uint32_t> left, std::span<const std::uint32_t> inliers,
-                                      const Plane& plane, const PlaneParams& params, Inlier&& inlier) {
+std::vector<std::uint32_t> justBehind(const Points& points, std::span<const std::uint32_t> left, const Plane& plane,
+                                      const PlaneFootprint& footprint, const PlaneParams& params, Inlier&& inlier) {
   Plane behind = plane;
   behind.d -= (plane.side(params.viewpoint) > 0 ? 1.0f : -1.0f) * kFartherTolerances * params.tolerance;
-  const PlaneFootprint footprint(points, inliers, plane, params.link, params.hole);
   std::vector<std::uint32_t> farther;
   for (const auto i : left)
     if (footprint.within(points[i]) && inlier(i, behind)) farther.push_back(i);
@@ -524,8 +523,13 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
       }
     };
     settle();
-    for (int k = 0; band > 0 && k < kFartherSteps && inliers.size() >= min_count; ++k) {
-      const std::vector<std::uint32_t> farther = justBehind(points, left, inliers, best, params, inlier);
+    // The inliers' footprint, once per fit: where a farther surface is looked for, then what the
+    // plane hides and its extent as background.
+    std::shared_ptr<const PlaneFootprint> extent;
+    for (int k = 0; inliers.size() >= min_count; ++k) {
+      extent = std::make_shared<const PlaneFootprint>(points, inliers, best, params.link, params.hole);
+      if (band == 0 || k == kFartherSteps) break;
+      const std::vector<std::uint32_t> farther = justBehind(points, left, best, *extent, params, inlier);
       if (static_cast<float>(farther.size()) < kFartherLayerShare * static_cast<float>(fitted.size())) break;
       best = refitted(points, farther, best);
       settle();
@@ -533,8 +537,7 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
     if (inliers.size() < min_count) break;  // the largest plane left is too small: done
     for (const auto i : inliers) tried[i] = 1;  // small patches of it stay in the scene, and are not tried again
     most_inliers = std::max(most_inliers, inliers.size());
-    // The inliers' footprint, once: what the plane hides, and its extent as background.
-    best.extent = std::make_shared<const PlaneFootprint>(points, inliers, best, params.link, params.hole);
+    best.extent = std::move(extent);
     const auto [behind, on_found] = pointsBehind(points, best, *best.extent, params.tolerance, params.viewpoint, found_in, found);
     if (found.size() < kOnNoPlane) {
       for (const auto i : inliers) found_in[i] = static_cast<std::uint8_t>(found.size());
