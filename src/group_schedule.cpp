@@ -197,6 +197,7 @@ void GroupSchedule::preferOther(GroupOutcome& o) const {
   o.evidence = other.evidence;
   o.path = std::move(other.path);
   o.stands.reset();  // judged for the first hypothesis, not this one
+  o.reflected = false;
 }
 
 void GroupSchedule::take(GroupOutcome& o) {
@@ -219,6 +220,9 @@ void GroupSchedule::take(GroupOutcome& o) {
   }
   const Detection det = o.hypothesis.detection;
   if (p_.verify && o.all_voters && o.evidence.scoreWithoutGrazing() < p_.retry_min_score) return;  // see retry_min_score
+  // A reflected mirror-image clique stands in where no clique fits the part itself: as another
+  // clique verified alone, it needs strong support (alternative_alone_score).
+  if (p_.verify && o.reflected && det.score < p_.alternative_alone_score) return;
   if (p_.verify && !(o.stands ? *o.stands : matcher_.stands(det.pose, det.score, o.evidence, o.hypothesis.support))) return;
   s.accept(std::move(o.hypothesis), p_, shape_, matcher_.scene.points);
 }

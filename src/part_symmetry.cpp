@@ -1,9 +1,45 @@
 // The three kinds of part symmetry behind one interface.
 #include "part_symmetry.hpp"
 
+#include <binpose/point_grid.hpp>
+
+#include <Eigen/Eigenvalues>
+
 #include <algorithm>
+#include <cmath>
 
 namespace binpose {
+
+std::optional<MirrorPlane> mirrorPlane(const OrientedModel& model) {
+  const Points& points = model.points;
+  if (points.size() < 3 || !(model.sample_radius > 0)) return std::nullopt;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const Vec3& x : points) mean += x.cast<double>();
+  mean /= static_cast<double>(points.size());
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (const Vec3& x : points) scatter += (x.cast<double>() - mean) * (x.cast<double>() - mean).transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> axes(scatter);
+  const PointGrid grid(points);
+  std::optional<MirrorPlane> best;
+  double best_rms = model.sample_radius;
+  for (int k = 0; k < 3; ++k) {
+    MirrorPlane plane;
+    plane.normal = axes.eigenvectors().col(k).cast<float>().normalized();
+    plane.d = plane.normal.dot(mean.cast<float>());
+    double sum = 0;
+    for (const Vec3& x : points) {
+      std::uint32_t index;
+      float d2 = 0;
+      if (!grid.nearest(plane.reflect(x), 2.0f * model.sample_radius, index, d2)) d2 = 4.0f * model.sample_radius * model.sample_radius;
+      sum += d2;
+    }
+    if (const double rms = std::sqrt(sum / static_cast<double>(points.size())); rms <= best_rms) {
+      best_rms = rms;
+      best = plane;
+    }
+  }
+  return best;
+}
 
 PartSymmetry::PartSymmetry(const ModelDatabase& db, const StageSettings& p) {
   const OrientedModel& model = db.model();
@@ -18,6 +54,7 @@ PartSymmetry::PartSymmetry(const ModelDatabase& db, const StageSettings& p) {
       classes_ = makeCyclicClasses(db, *cyclic_);
       kind_ = Kind::Cyclic;
     }
+  if (kind_ == Kind::None) mirror_ = mirrorPlane(model);
 }
 
 const Orbits* PartSymmetry::votingOrbits() const {
@@ -43,7 +80,8 @@ Graph PartSymmetry::consistencyGraph(std::span<const Correspondence> cps, const 
 }
 
 std::vector<PoseFit> PartSymmetry::solve(std::span<const Correspondence> clique, const Points& scene,
-                                         const Points& scene_normals, const Points& model, CliqueBuffers& b) const {
+                                         const Points& scene_normals, const Points& model, CliqueBuffers& b,
+                                         bool reflected) const {
   b.scene.clear();
   for (const Correspondence& c : clique) b.scene.push_back(scene[c.scene]);
   if (kind_ == Kind::Revolution) {  // the axis of the clique's orbits
@@ -57,6 +95,8 @@ std::vector<PoseFit> PartSymmetry::solve(std::span<const Correspondence> clique,
   }
   b.model.clear();
   for (const Correspondence& c : clique) b.model.push_back(model[c.model]);
+  if (reflected && mirror_)
+    for (Vec3& x : b.model) x = mirror_->reflect(x);
   PoseFit fit = kind_ == Kind::Cyclic ? solveCyclicPose(*cyclic_, b.model, b.scene, b.cyclic) : solvePose(b.model, b.scene, b.pose);
   if (!fit.ok) return {};
   return {fit};

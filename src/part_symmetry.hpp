@@ -27,6 +27,19 @@ struct CliqueBuffers {
   std::vector<double> pose;  ///< solvePose's
 };
 
+/// A plane that maps the model onto itself: x -> x - 2 (normal . x - d) normal.
+struct MirrorPlane {
+  Vec3 normal = Vec3::UnitZ();
+  float d = 0;
+  [[nodiscard]] Vec3 reflect(const Vec3& x) const { return x - 2.0f * (normal.dot(x) - d) * normal; }
+};
+
+/// The model's mirror plane, when it has one: of the three planes through its centroid across its
+/// principal axes, the one whose reflection of the model points lies nearest the model, when that
+/// is within one sample radius (RMS of each reflected point's distance to the nearest model
+/// point; a sampled, exactly symmetric part gives about half). None otherwise.
+std::optional<MirrorPlane> mirrorPlane(const OrientedModel& model);
+
 class PartSymmetry {
  public:
   enum class Kind { None, Revolution, Cyclic };
@@ -49,16 +62,22 @@ class PartSymmetry {
                                        const OrientedModel& model, const StageSettings& p, GraphWorkspace& workspace) const;
   /// The closed-form poses of a clique's pairs (4.6), best first: one, or for a body of
   /// revolution both axis signs where the normals leave it open. None when there is no pose.
+  /// `reflected`: the pairs' model points taken in the part's mirror plane (mirror()), for a
+  /// clique that fits only a mirror image of the part.
   [[nodiscard]] std::vector<PoseFit> solve(std::span<const Correspondence> clique, const Points& scene,
-                                           const Points& scene_normals, const Points& model, CliqueBuffers& buffers) const;
+                                           const Points& scene_normals, const Points& model, CliqueBuffers& buffers,
+                                           bool reflected = false) const;
   /// True when a refused (mirror-image) clique may give way to the next largest.
   [[nodiscard]] bool retriesMirrors() const { return kind_ != Kind::Revolution; }
+  /// The part's mirror plane, for a part without another symmetry that has one (mirrorPlane).
+  [[nodiscard]] const std::optional<MirrorPlane>& mirror() const { return mirror_; }
 
  private:
   Kind kind_ = Kind::None;
   std::optional<Orbits> orbits_;
   std::optional<CyclicSymmetry> cyclic_;
   std::optional<Orbits> classes_;  ///< cyclic_'s classes of images
+  std::optional<MirrorPlane> mirror_;
 };
 
 }  // namespace binpose

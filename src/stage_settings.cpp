@@ -24,6 +24,7 @@ StageSettings thesisStages() {
   s.retry_all_voters = false;
   s.pair_angle_tolerance = 0.0f;
   s.mirror_retries = 0;
+  s.reflect_mirrors = false;
   s.alternative_cliques = 0;
   s.turn_over = false;
   s.slide_faces = false;

@@ -68,6 +68,10 @@ struct StageSettings : DetectionParams {
   /// a symmetric part's graph tests angles by revolution_angle_tolerance).
   float pair_angle_tolerance = 25.0f;
   int mirror_retries = 1;     ///< searches again without a clique that fits only a mirror image, this many times
+  /// ... and when none fits the part itself, a mirror-symmetric part's first such clique is fitted
+  /// with its model points reflected in the part's mirror plane (PartSymmetry::mirror); its pose
+  /// is kept from alternative_alone_score.
+  bool reflect_mirrors = true;
   /// After the clique that gave the pose, the largest without its pairs gives another, this many
   /// times (0: the thesis's one clique). On a noisy scan the largest clique is often a wrong pose
   /// and the right one among the next. The best of them at the ICP gate is refined and scored

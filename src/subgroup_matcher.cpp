@@ -20,7 +20,7 @@ void reset(GroupOutcome& out, bool all_voters) {
   out.poses.clear();
   out.other_poses.clear();
   out.other.reset();
-  out.ran = out.screened_out = out.pending = out.refound = out.held = false;
+  out.ran = out.screened_out = out.pending = out.refound = out.held = out.reflected = false;
   out.path.clear();
   out.all_voters = all_voters;
   out.largest_clique = 0;
@@ -118,30 +118,40 @@ bool Matcher::collectVotes(Slot& s, bool all_voters, ParallelVoter* parallel) co
 bool Matcher::match(Slot& s) const {
   if (s.candidates.size() < static_cast<std::size_t>(p.C_n)) return false;
   Graph graph = symmetry.consistencyGraph(s.candidates, scene.points, scene.normals, db.model(), p, s.buffers.graph);
+  std::optional<CliqueResult> mirrored;  // the first clique refused as a mirror image
   for (int retry = 0;; ++retry) {
     const CliqueResult clique = maximumClique(graph, p.clique_work_limit, s.buffers.clique);
     if (retry == 0) s.outcome.largest_clique = static_cast<int>(clique.vertices.size());
-    if (clique.vertices.size() < static_cast<std::size_t>(p.C_n)) return false;
+    if (clique.vertices.size() < static_cast<std::size_t>(p.C_n)) break;
     if (fitClique(s, clique)) {
       addAlternativeCliques(s, graph, clique.vertices);
       return true;
     }
+    if (!mirrored) mirrored = clique;
     // A mirror image (or a degenerate set): the next largest clique without its pairs.
-    if (!symmetry.retriesMirrors() || retry >= p.mirror_retries) return false;
+    if (!symmetry.retriesMirrors() || retry >= p.mirror_retries) break;
     graph.isolate(clique.vertices);
   }
+  // No clique fits the part itself. Point-pair features do not change under a reflection, so a
+  // copy of a mirror-symmetric part also votes for the mirror images of its points, and a clique
+  // of such pairs fits only a mirror image of the part. Their images in the part's own mirror
+  // plane are points of the part as well, and fit the copy's pose.
+  if (!p.reflect_mirrors || !mirrored || !symmetry.mirror() || !fitClique(s, *mirrored, true)) return false;
+  s.outcome.reflected = true;
+  addAlternativeCliques(s, graph, mirrored->vertices);
+  return true;
 }
 
-std::vector<PoseFit> Matcher::posesOf(Slot& s, std::span<const int> vertices) const {
+std::vector<PoseFit> Matcher::posesOf(Slot& s, std::span<const int> vertices, bool reflected) const {
   s.clique.clear();
   for (const int v : vertices) s.clique.push_back(s.candidates[v]);
-  std::vector<PoseFit> fits = symmetry.solve(s.clique, scene.points, scene.normals, db.model().points, s.buffers);
+  std::vector<PoseFit> fits = symmetry.solve(s.clique, scene.points, scene.normals, db.model().points, s.buffers, reflected);
   if (!fits.empty() && !fits.front().ok) fits.clear();
   return fits;
 }
 
-bool Matcher::fitClique(Slot& s, const CliqueResult& clique) const {
-  const std::vector<PoseFit> fits = posesOf(s, clique.vertices);
+bool Matcher::fitClique(Slot& s, const CliqueResult& clique, bool reflected) const {
+  const std::vector<PoseFit> fits = posesOf(s, clique.vertices, reflected);
   if (fits.empty()) return false;
   s.outcome.clique.insert(s.outcome.clique.end(), s.clique.begin(), s.clique.end());
   for (const PoseFit& fit : fits) s.outcome.poses.push_back(fit.pose);  // the first, then its alternatives
@@ -303,6 +313,7 @@ void Matcher::screenRefineScore(Slot& s) const {
     }
     det.pose = other->pose;  // the first clique's poses fail the pre-screen, the other's stands in
     s.outcome.poses = {other->pose};
+    s.outcome.reflected = false;
     other.reset();
   }
   if (p.refine) {

@@ -49,6 +49,7 @@ struct GroupOutcome {
   std::vector<Pose> path;                           ///< ICP's pose after each step
   bool refound = false;                             ///< ICP came to an object already found (and stopped there)
   bool all_voters = false;                          ///< every member's candidates taken, not only the voters'
+  bool reflected = false;                           ///< the pose of a mirror-image clique, reflected (Matcher::match)
   int largest_clique = 0;                           ///< size of the first clique searched (0: none searched)
   Hypothesis hypothesis;                            ///< refined and scored (when the clique gave a pose that passed)
   Evidence evidence;                                ///< the hypothesis's counts (its score, without grazing, visible support)
@@ -143,13 +144,15 @@ struct Matcher {
   /// The candidate correspondences of the outcome's members; false when a second pass has nothing new.
   bool collectVotes(Slot& s, bool all_voters, ParallelVoter* parallel) const;
   /// Clique and closed-form pose (a refused mirror-image clique gives way to the next, up to
-  /// mirror_retries times); false when there is none. The pose goes into the outcome.
+  /// mirror_retries times; when none fits, the first such clique of a mirror-symmetric part
+  /// fits with its model points reflected in the part's mirror plane); false when there is none.
+  /// The pose goes into the outcome.
   bool match(Slot& s) const;
   /// The closed-form poses (4.6) of the candidates at `vertices`, best first, their pairs in the
-  /// slot's clique; empty when there is none.
-  std::vector<PoseFit> posesOf(Slot& s, std::span<const int> vertices) const;
+  /// slot's clique; empty when there is none. `reflected`: as PartSymmetry::solve.
+  std::vector<PoseFit> posesOf(Slot& s, std::span<const int> vertices, bool reflected = false) const;
   /// The closed-form pose of a clique's pairs into the outcome; false when there is none.
-  bool fitClique(Slot& s, const CliqueResult& clique) const;
+  bool fitClique(Slot& s, const CliqueResult& clique, bool reflected = false) const;
   /// The poses of the next alternative_cliques largest cliques, each without the pairs of the
   /// one before (`taken`, isolated in `graph`), into the outcome's other_poses.
   void addAlternativeCliques(Slot& s, Graph& graph, std::vector<int> taken) const;
