@@ -2,8 +2,7 @@
 #include "part_symmetry.hpp"
 
 #include <binpose/point_grid.hpp>
-
-#include <Eigen/Eigenvalues>
+#include <binpose/symmetry.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -13,19 +12,14 @@ namespace binpose {
 std::optional<MirrorPlane> mirrorPlane(const OrientedModel& model) {
   const Points& points = model.points;
   if (points.size() < 3 || !(model.sample_radius > 0)) return std::nullopt;
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  for (const Vec3& x : points) mean += x.cast<double>();
-  mean /= static_cast<double>(points.size());
-  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
-  for (const Vec3& x : points) scatter += (x.cast<double>() - mean) * (x.cast<double>() - mean).transpose();
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> axes(scatter);
+  const PrincipalAxes principal = principalAxes(points);
   const PointGrid grid(points);
   std::optional<MirrorPlane> best;
   double best_rms = model.sample_radius;
   for (int k = 0; k < 3; ++k) {
     MirrorPlane plane;
-    plane.normal = axes.eigenvectors().col(k).cast<float>().normalized();
-    plane.d = plane.normal.dot(mean.cast<float>());
+    plane.normal = principal.axes.col(k).normalized();
+    plane.d = plane.normal.dot(principal.centre);
     double sum = 0;
     for (const Vec3& x : points) {
       std::uint32_t index;
