@@ -20,6 +20,9 @@ constexpr std::size_t kNoiseSamples = 256;
 constexpr std::size_t kNoiseNeighbours = 24;
 /// The reach is that of the normals' default k, the neighbours the tilt is judged for.
 constexpr std::size_t kReachNeighbours = 8;
+/// The spacing is the distance to the fourth nearest other point: on a grid the four beside it,
+/// on a tilted surface the wider of its two spacings.
+constexpr std::size_t kSpacingNeighbour = 4;
 
 /// Noise over reach of a k = 8 fit under which its normal is sound; noisier scans fit more neighbours.
 constexpr float kSoundTilt = 0.08f;
@@ -156,21 +159,33 @@ NoiseEstimate estimateNoise(const Points& cloud, std::span<const std::uint32_t> 
       distances[k] = (cloud[idx[k]] - cloud[i]).norm();
     }
     std::nth_element(distances, distances + kReachNeighbours - 1, distances + kNoiseNeighbours);
-    const double lambda0 = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(W, Eigen::EigenvaluesOnly).eigenvalues()(0);
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(W);
+    const double lambda0 = solver.eigenvalues()(0);
     const auto sigma = static_cast<float>(std::sqrt(std::max(0.0, lambda0) / double(kNoiseNeighbours - 3)));
-    fits.push_back({(cloud[i] - viewpoint).norm(), sigma, distances[kReachNeighbours - 1]});
+    const Vec3 normal = solver.eigenvectors().col(0).cast<float>();
+    float along[kNoiseNeighbours];  // each neighbour's distance in the fit's plane (along[0]: the point itself)
+    for (std::size_t k = 0; k < kNoiseNeighbours; ++k) {
+      const Vec3 d = cloud[idx[k]] - cloud[i];
+      along[k] = (d - d.dot(normal) * normal).norm();
+    }
+    std::nth_element(along, along + kSpacingNeighbour, along + kNoiseNeighbours);
+    fits.push_back({(cloud[i] - viewpoint).norm(), sigma, distances[kReachNeighbours - 1], along[kSpacingNeighbour]});
   }
   out.far_range = farNoisyRange(fits, far_limit);
-  std::vector<float> sigmas, reaches;  // of the fits nearer than far_range
+  std::vector<float> sigmas, reaches, spacings;  // of the fits nearer than far_range
   for (const NoiseSample& f : fits)
     if (f.range < out.far_range) {
       sigmas.push_back(f.sigma);
       reaches.push_back(f.reach);
+      spacings.push_back(f.spacing);
     }
   if (sigmas.empty()) return out;
   out.samples = static_cast<int>(sigmas.size());
   out.sigma = medianOf(sigmas);
   out.reach = medianOf(reaches);
+  const auto quartile = spacings.begin() + static_cast<long>(spacings.size() / 4);
+  std::nth_element(spacings.begin(), quartile, spacings.end());
+  out.spacing = *quartile;
   return out;
 }
 

@@ -16,17 +16,23 @@ namespace binpose {
 struct NoiseEstimate {
   float sigma = 0;   ///< median residual of a point's plane fit, 1 sigma, mm
   float reach = 0;   ///< median distance to the fit's farthest neighbour, mm
-  int samples = 0;   ///< plane fits it rests on (0: none could be made; sigma and reach 0)
+  int samples = 0;   ///< plane fits it rests on (0: none could be made; sigma, reach and spacing 0)
   /// Points this far from the viewpoint or farther lie where the scan is too noisy to match
   /// (farNoisyRange), mm; infinity: nowhere. sigma and reach are measured nearer.
   float far_range = INFINITY;
+  /// Distance between neighbouring scan points along the surface (in each fit's plane, so the
+  /// noise across it does not count) to the fourth nearest, the wider spacing where a tilted
+  /// surface's pixels lie farther apart one way; the lower quartile of the fits' (the scan's
+  /// nearest surfaces, a bin rather than the room behind it), mm. Measured nearer than far_range.
+  float spacing = 0;
 };
 
-/// One plane fit: its distance from the viewpoint, its residual and its reach, mm.
+/// One plane fit: its distance from the viewpoint, its residual, its reach and spacing, mm.
 struct NoiseSample {
   float range = 0;
   float sigma = 0;
   float reach = 0;
+  float spacing = 0;
 };
 
 /// The range from which the scan is too noisy to match, from its plane fits: the nearest band of

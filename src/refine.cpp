@@ -335,7 +335,7 @@ Pose refinePose(const Pose& pose, const PreparedModel& model, const Points& scan
 }
 
 SceneEvidence::SceneEvidence(const Points& scan, const PointGrid& grid, const Vec3& viewpoint, const PixelNeighbours* pixels)
-    : grid_(grid), pixels_(pixels != nullptr && pixels->usable() ? pixels : nullptr), viewpoint_(viewpoint),
+    : scan_(scan), grid_(grid), pixels_(pixels != nullptr && pixels->usable() ? pixels : nullptr), viewpoint_(viewpoint),
       to_view_(Eigen::Matrix3f::Identity()) {
   if (scan.empty()) return;
   Vec3 axis = Vec3::Zero();
@@ -451,7 +451,7 @@ namespace {
 
 /// A sensor-facing point of the posed model, with its range and direction in the image frame.
 struct Facing {
-  Vec3 p;
+  Vec3 p, n;  ///< posed point and normal
   float range, u, v;
   bool grazing;
 };
@@ -464,7 +464,9 @@ std::vector<Facing> facingPoints(const Pose& pose, const PreparedModel& model, c
   std::size_t i = 0;
 #if defined(__SSE2__)
   i = kernels::facingBlocks(model.lanes(), pose, viewpoint, to_view, cos_grazing_angle,  // the same sums as below
-                            [&](const Vec3& p, float range, float u, float v, bool grazing) { facing.push_back({p, range, u, v, grazing}); });
+                            [&](const Vec3& p, const Vec3& n, float range, float u, float v, bool grazing) {
+                              facing.push_back({p, n, range, u, v, grazing});
+                            });
 #endif
   const Points &model_points = model.points(), &model_normals = model.normals();
   for (; i < model_points.size(); ++i) {
@@ -474,7 +476,7 @@ std::vector<Facing> facingPoints(const Pose& pose, const PreparedModel& model, c
     const Vec3 q = to_view * (p - viewpoint);
     if (q.z() <= 0) continue;
     const float range = q.norm();  // the normal is of unit length: its dot is the incidence's cosine times range
-    facing.push_back({p, range, q.x() / q.z(), q.y() / q.z(), n.dot(viewpoint - p) < cos_grazing_angle * range});
+    facing.push_back({p, n, range, q.x() / q.z(), q.y() / q.z(), n.dot(viewpoint - p) < cos_grazing_angle * range});
   }
   return facing;
 }
@@ -497,6 +499,24 @@ std::optional<ZBuffer> selfOcclusion(const std::vector<Facing>& facing, float mo
 }
 
 enum Verdict : std::uint8_t { kHidden, kSupported, kContradicted, kOccluded, kOnBackground, kUnknown };
+
+/// A scan point within `tolerance` of the facing point's tangent plane and within `lateral` of it
+/// along that plane (SceneEvidence::setLateralSlack): the nearest such, into `index`. `near`:
+/// scratch for the radius search.
+bool alongSurface(const PointGrid& grid, const Points& scan, const Facing& f, float tolerance, float lateral,
+                  std::vector<std::uint32_t>& near, std::uint32_t& index) {
+  grid.within(f.p, std::sqrt(tolerance * tolerance + lateral * lateral), near);
+  float best = INFINITY;
+  for (const std::uint32_t j : near) {
+    const Vec3 d = scan[j] - f.p;
+    const float across = d.dot(f.n), along2 = d.squaredNorm() - across * across;
+    if (std::abs(across) <= tolerance && along2 <= lateral * lateral && along2 < best) {
+      best = along2;
+      index = j;
+    }
+  }
+  return std::isfinite(best);
+}
 
 /// The counts of the verdicts, in order; the supporting scan points into `support` when given.
 Evidence tally(const std::vector<Facing>& facing, const std::vector<Verdict>& verdict, const std::vector<std::uint32_t>& nearest,
@@ -541,7 +561,9 @@ Evidence SceneEvidence::evaluate(const Pose& pose, const PreparedModel& model, f
   // Each facing point's verdict, in parallel (the tree queries), then counted in order.
   std::vector<Verdict> verdict(facing.size());
   std::vector<std::uint32_t> nearest(facing.size());
+  const bool slack = lateral_ > tolerance;
   tbb::parallel_for(std::size_t{0}, (facing.size() + kChunk - 1) / kChunk, [&](std::size_t k) {
+    std::vector<std::uint32_t> near;
     for (std::size_t i = k * kChunk; i < std::min(facing.size(), (k + 1) * kChunk); ++i) {
       const Facing& f = facing[i];
       verdict[i] = kUnknown;
@@ -554,7 +576,8 @@ Evidence SceneEvidence::evaluate(const Pose& pose, const PreparedModel& model, f
       // (Only the nearest through the pixels: most of the score's points with none within the
       // tolerance lie off the scan's surface, where the grid's cells are empty and the pixels'
       // windows full; asked first for any point, the pixels lost 0.4-0.9 ms a run.)
-      if (support != nullptr ? binpose::nearest(grid_, pixels_, f.p, tolerance, nearest[i], d2) : grid_.anyWithin(f.p, tolerance)) {
+      if ((support != nullptr ? binpose::nearest(grid_, pixels_, f.p, tolerance, nearest[i], d2) : grid_.anyWithin(f.p, tolerance)) ||
+          (slack && alongSurface(grid_, scan_, f, tolerance, lateral_, near, nearest[i]))) {
         const bool on_bin = std::any_of(background_.begin(), background_.end(),
                                         [&](const Plane& b) { return b.distance(f.p) <= background_tolerance_; });
         verdict[i] = on_bin ? kOnBackground : kSupported;

@@ -86,7 +86,7 @@ std::size_t projectBlocks(const Points& scan, const Vec3& viewpoint, const Eigen
 }
 
 /// The posed model's sensor-facing points (facingPoints), whole blocks of four lanes, each
-/// handed to emit(p, range, u, v, grazing) in order; returns the number of points done.
+/// handed to emit(p, n, range, u, v, grazing) in order; returns the number of points done.
 template <class Emit>
 std::size_t facingBlocks(const detail::OrientedLanes& lanes, const Pose& pose, const Vec3& viewpoint,
                          const Eigen::Matrix3f& to_view, float cos_grazing_angle, Emit&& emit) {
@@ -117,7 +117,7 @@ std::size_t facingBlocks(const detail::OrientedLanes& lanes, const Pose& pose, c
     _mm_store_ps(v, _mm_div_ps(q[1], q[2]));
     for (; keep; keep &= keep - 1) {
       const int l = std::countr_zero(keep);
-      emit(Vec3(pf[l], pf[4 + l], pf[8 + l]), ranges[l], u[l], v[l], (grazing >> l & 1u) != 0);
+      emit(Vec3(pf[l], pf[4 + l], pf[8 + l]), Vec3(nf[l], nf[4 + l], nf[8 + l]), ranges[l], u[l], v[l], (grazing >> l & 1u) != 0);
     }
   }
   return s;

@@ -63,6 +63,21 @@ TEST(Noise, PlaneFitResidualsMeasureTheNoise) {
 // A clean scan keeps every value; a noisy one raises the normals' k (capped), e_gmax and the
 // tolerances (a symmetric part's angles only where the normals stay rough), and never lowers a
 // value the user set higher.
+// The spacing is measured in each fit's plane, to the fourth nearest point: on a grid tilted by
+// 17 degrees, the wider of its two spacings (3.13 mm along the tilt, 3 mm across), whatever the
+// noise along the line of sight.
+TEST(Noise, SpacingIsMeasuredAlongTheSurface) {
+  for (const float sigma : {0.0f, 0.3f, 1.0f}) {
+    const NoiseEstimate n = measured(noisyPlane(sigma, 11, 3.0f));
+    ASSERT_GT(n.samples, 200);
+    EXPECT_GT(n.spacing, 2.9f) << sigma;
+    EXPECT_LT(n.spacing, 3.5f) << sigma;
+  }
+  const NoiseEstimate fine = measured(noisyPlane(0.1f, 11, 1.0f));
+  EXPECT_GT(fine.spacing, 0.95f);
+  EXPECT_LT(fine.spacing, 1.2f);
+}
+
 TEST(Noise, OnlyANoisyScanRaisesTheValues) {
   const StageSettings p = stageSettings(defaultPreset(), 60.0f);
   const StageSettings clean = adaptedToNoise(p, {0.05f, 1.5f, 256});

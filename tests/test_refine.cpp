@@ -95,6 +95,43 @@ TEST(Evidence, TheBinsPlanesDoNotSupportAPart) {
   EXPECT_GT(score({Plane{Vec3::UnitX(), 300.0f, {}}}), 0.8f);
 }
 
+// A scan 3 mm between points (a sensor far away, or of few pixels) and a 60 x 40 mm face of
+// model points 1 mm apart laid on it: only a third of the face's points have a scan point within
+// the 1 mm tolerance, though the pose is right. With the sampling's slack along the surface
+// (0.75 spacings) every one is supported; the same face 3 mm in front of the scan or tilted
+// by 10 degrees across it, no more than before.
+TEST(Evidence, ASparseScanSupportsARightPoseAlongItsSurface) {
+  Points scan;
+  for (float x = -150; x <= 150; x += 3)
+    for (float y = -150; y <= 150; y += 3) scan.emplace_back(x, y, 500.0f);
+  Points face, normals;
+  for (float x = -30; x <= 30; x += 1)
+    for (float y = -20; y <= 20; y += 1) {
+      face.emplace_back(x + 0.4f, y + 0.7f, 0.0f);
+      normals.push_back(-Vec3::UnitZ());  // towards the sensor at the origin
+    }
+  const PointGrid grid(scan);
+  SceneEvidence evidence(scan, grid, Vec3::Zero());
+  const auto share = [&](const Pose& pose) {
+    const Evidence e = evidence.evaluate(pose, face, normals, 1.0f, 0.0f);
+    return float(e.supported) / float(e.facing);
+  };
+  Pose flush = Pose::Identity();
+  flush.translation() = Vec3(0, 0, 500);
+  Pose in_front = flush;
+  in_front.translation().z() = 497;
+  Pose tilted = flush;
+  tilted.linear() = Eigen::AngleAxisf(10.0f * float(M_PI) / 180.0f, Vec3::UnitY()).toRotationMatrix();
+  const float sparse = share(flush), front = share(in_front), tilt = share(tilted);
+  EXPECT_LT(sparse, 0.5f);
+  evidence.setLateralSlack(0.75f * 3.0f);
+  EXPECT_GT(share(flush), 0.99f);
+  EXPECT_EQ(share(in_front), front);
+  EXPECT_EQ(front, 0.0f);
+  EXPECT_LT(share(tilted), 0.25f);  // only the band where the tilted face crosses the scan
+  EXPECT_GT(share(tilted), tilt);
+}
+
 // A box lying on the floor hides the floor beneath it; the same box stood on end and sunk half
 // into that hidden floor is hidden there too (the free-space test sees the box's top first),
 // but lies inside the floor that the scan shows all around it.

@@ -169,7 +169,8 @@ struct OutlineEvidence {
 /// free-space contradictions.
 class SceneEvidence {
  public:
-  /// `pixels`, when given, is the scan's PixelNeighbours, which must outlive this: the scan
+  /// `scan` and `grid` (a grid of it) must outlive this. `pixels`, when given, is the scan's
+  /// PixelNeighbours, which must outlive this too: the scan
   /// spacing's sample and evaluate()'s searches ask it first (the same answers as the grid,
   /// faster).
   SceneEvidence(const Points& scan, const PointGrid& grid, const Vec3& viewpoint, const PixelNeighbours* pixels = nullptr);
@@ -188,6 +189,13 @@ class SceneEvidence {
   /// Model points whose normal makes more than `degrees` with the line of sight are counted
   /// apart as grazing (Evidence::grazing). 90, the default: none.
   void setGrazingAngle(float degrees) { cos_grazing_ = std::cos(degrees * float(M_PI) / 180.0f); }
+  /// The scan's sampling across the surface, mm (0, the default: none). A model point of a
+  /// right pose lies up to about 0.7 point spacings from the nearest scan point, however
+  /// small the noise; where `lateral` exceeds evaluate()'s tolerance, a scan point also
+  /// supports a model point when it lies within the tolerance of the model point's tangent
+  /// plane and within `lateral` of it along that plane. The slack is along the surface only:
+  /// a surface in front of or behind the part counts no more than before.
+  void setLateralSlack(float lateral) { lateral_ = lateral; }
   /// `model_spacing`: the model's sample spacing, mm, for its self-occlusion test (0: none).
   /// The scan points that support the pose are appended to `support` when it is given.
   [[nodiscard]] Evidence evaluate(const Pose& pose, const PreparedModel& model, float tolerance, float model_spacing,
@@ -227,12 +235,14 @@ class SceneEvidence {
   /// nearest range in p's direction): inside the floor or a wall, where no part can be.
   [[nodiscard]] bool insideBackground(const Vec3& p, float range, float seen_range, float tolerance) const;
 
+  const Points& scan_;
   const PointGrid& grid_;
   const PixelNeighbours* pixels_;
   Vec3 viewpoint_;
   std::vector<Plane> background_;
   float background_tolerance_ = 0;
   float cos_grazing_ = 0;  ///< cosine of the grazing angle
+  float lateral_ = 0;      ///< setLateralSlack's
   Eigen::Matrix3f to_view_;  ///< rotation into the image frame (z along the scan's mean direction)
   float bin_ = 0;            ///< cell size in tangent-plane units
   float u0_ = 0, v0_ = 0;
