@@ -47,7 +47,9 @@ constexpr float kWidestNormalReach = 8.0f;
 /// simulated Kinect-class bins read 0.43, the real IC-BIN frames 0.24-0.27; the industrial model
 /// 0.15, the ideal sensor 0.07-0.11), and a symmetric part's pairs are let through at angles up to
 /// kRoughRevolutionTolerance: on the 12 seeded structured-light bins 78 -> 82 right (18 and 25
-/// degrees: 80 and 79), the industrial and clean bins unchanged.
+/// degrees: 80 and 79), the industrial and clean bins unchanged. A pose seen by more than one
+/// face is then held to max_outline_share like one seen by one face: at 0.85 the fresh
+/// structured-light bins kept 4 more copies turned over (MSSD 10 mm or more) and no more right.
 constexpr float kRoughTilt = 2.0f * kSoundTilt;
 constexpr float kRoughRevolutionTolerance = 20.0f;
 /// From kReportTilt to kHighReportTilt the reported detections' least score rises from min_score
@@ -199,7 +201,10 @@ StageSettings adaptedToNoise(const StageSettings& p, const NoiseEstimate& noise)
     const float radius = std::min({kSigmasOfNormalReach * noise.sigma, p.normal_max_radius, kWidestNormalReach * noise.reach});
     if (k > kMostNeighbours && radius > kMostNeighboursReach * noise.reach) a.normal_radius = radius;
   }
-  if (tilt > kRoughTilt) a.revolution_angle_tolerance = std::max(p.revolution_angle_tolerance, kRoughRevolutionTolerance);
+  if (tilt > kRoughTilt) {
+    a.revolution_angle_tolerance = std::max(p.revolution_angle_tolerance, kRoughRevolutionTolerance);
+    a.many_faces_outline_share = p.max_outline_share;
+  }
   a.e_gmax = std::max(p.e_gmax, kSigmasOfConsistency * noise.sigma);
   a.plane_tolerance = std::max(p.plane_tolerance, kSigmasOfConsistency * noise.sigma);
   if (kSigmasOfFitBand * noise.sigma <= kMostFitBandShare * a.plane_tolerance) a.plane_fit_band = kSigmasOfFitBand * noise.sigma;

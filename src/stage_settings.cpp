@@ -111,6 +111,7 @@ void validateStages(const StageSettings& s) {
   share(s.retry_min_score, "retry_min_score");
   share(s.min_visible_support, "min_visible_support");
   share(s.max_outline_share, "max_outline_share");
+  share(s.many_faces_outline_share, "many_faces_outline_share");
   share(s.min_outline_drop, "min_outline_drop");
   share(s.max_sunk_share, "max_sunk_share");
   share(s.report_score, "report_score");

@@ -117,6 +117,13 @@ struct StageSettings : DetectionParams {
   /// (SceneEvidence::outline: one face laid on a larger surface; 1: no test). Right poses reach
   /// 0.55 where a copy lies flush against another.
   float max_outline_share = 0.6f;
+  /// ... and one whose support lies on more than one plane at more than this share (at least
+  /// max_outline_share): the scan shows more of the part's shape than one face, and a surface
+  /// going on past its outline is most often a neighbour lying flush against it, a block's faces
+  /// in line with its neighbours' (right poses of IPD obj 4 packed side by side read 0.74-0.88).
+  /// Lowered to max_outline_share on a scan whose normals stay rough (adaptedToNoise), where a
+  /// copy turned over reads as many planes as a right one.
+  float many_faces_outline_share = 0.85f;
   /// A detection whose support lies on one plane (the scan shows it by one flat face) must stand
   /// out of what lies behind it: beyond at least this share of its judged outline steps the scan
   /// lies clearly behind the part's tangent plane (OutlineEvidence::dropped; 0: no test). A pose

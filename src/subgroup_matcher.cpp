@@ -216,15 +216,10 @@ bool Matcher::outlineStandsOut(const Pose& pose, const std::optional<Plane>& fac
   // bins the laid poses of right copies fall away at 0.6-0.8 of their judged outline (median),
   // against 0.25 on scans of other objects.
   constexpr float kLaidMinDrop = 0.4f;
-  // Where the support lies on more than one plane, the scan shows more of the part's shape than
-  // one face, and a surface going on past its outline is most often a neighbour lying flush
-  // against it: a block's faces in line with its neighbours'. Right poses of IPD obj 4 (a 2-inch
-  // block) packed side by side read 0.74-0.88 and were dropped at max_outline_share.
-  constexpr float kManyFacesMaxShare = 0.85f;
   if (!laid && p.max_outline_share >= 1.0f && p.min_outline_drop <= 0.0f) return true;
   const OutlineEvidence o = evidence.outline(pose, scored_model, p.verify_tolerance, db.model().sample_radius);
   if (laid && !(o.judged >= kMinJudged && o.droppedShare() >= kLaidMinDrop)) return false;
-  const float most = face ? p.max_outline_share : std::max(p.max_outline_share, kManyFacesMaxShare);
+  const float most = face ? p.max_outline_share : std::max(p.max_outline_share, p.many_faces_outline_share);
   if (o.judged >= kMinJudged && o.share() > most) return false;  // a face laid on a larger surface
   if (o.judged < kMinDropJudged || o.droppedShare() >= p.min_outline_drop) return true;
   // Nothing falls away around it: it stands only where the scan shows more of it than one plane.

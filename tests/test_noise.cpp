@@ -91,8 +91,11 @@ TEST(Noise, OnlyANoisyScanRaisesTheValues) {
   const StageSettings mild = adaptedToNoise(p, {0.24f, 2.0f, 256});  // tilt 0.12: k raised, angles kept
   EXPECT_GT(mild.k_normals, p.k_normals);
   EXPECT_EQ(mild.revolution_angle_tolerance, p.revolution_angle_tolerance);
+  EXPECT_EQ(mild.many_faces_outline_share, p.many_faces_outline_share);
+  EXPECT_GT(p.many_faces_outline_share, p.max_outline_share);
   const StageSettings noisy = adaptedToNoise(p, {1.0f, 2.0f, 256});
   EXPECT_EQ(noisy.revolution_angle_tolerance, 20.0f);  // tilt 0.5: rough normals
+  EXPECT_EQ(noisy.many_faces_outline_share, p.max_outline_share);  // a pose seen by many faces held as one seen by one
   EXPECT_GT(noisy.k_normals, p.k_normals);
   EXPECT_LE(noisy.k_normals, 32);
   EXPECT_GT(noisy.e_gmax, 2.0f);
