@@ -125,9 +125,10 @@ struct Matcher {
   /// the scan hides (e.occluded): a body sunk into a surface that goes on from its face.
   [[nodiscard]] bool sunkBehindFace(const Pose& pose, const std::optional<Plane>& face, const Evidence& e) const;
   /// Whether the posed part's outline tells it from the scan around it (SceneEvidence::outline):
-  /// the scan's surface does not go on past it at more than max_outline_share of it, and where
-  /// the support lies on one plane (`face`: faceOf of the support), the scan falls away behind at
-  /// least min_outline_drop of it. A pose `laid` on one flat face (face_hypotheses.hpp) must also
+  /// the scan's surface does not go on past it at more than max_outline_share of it (where the
+  /// support lies on more than one plane, many_faces_outline_share), and where the support lies
+  /// on one plane (`face`: faceOf of the support), the scan falls away behind at least
+  /// min_outline_drop of it. A pose `laid` on one flat face (face_hypotheses.hpp) must also
   /// fall away behind 40 % of it, whatever those two settings.
   [[nodiscard]] bool outlineStandsOut(const Pose& pose, const std::optional<Plane>& face, bool laid = false) const;
   /// The plane that the support's scan points lie on, when 80 % of them or more lie within two
