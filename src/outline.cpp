@@ -10,6 +10,8 @@
 // behind it (the part stands out of what lies behind it).
 #include <binpose/refine.hpp>
 
+#include "facing_points.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -37,12 +39,6 @@ constexpr float kBandTolerances = 2.0f;
 /// The model's cells are at most this many across (a pose seen from very near).
 constexpr long kMaxCells = 1L << 18;
 
-/// A posed facing model point: where it is, its normal and its direction in the image frame.
-struct Seen {
-  Vec3 p, n;
-  float range, u, v;
-};
-
 /// The model's cell grid over its image: each cell's nearest facing point (the part's front).
 struct Silhouette {
   float size = 0, u0 = 0, v0 = 0;
@@ -54,27 +50,13 @@ struct Silhouette {
   }
 };
 
-std::vector<Seen> facingSeen(const Pose& pose, const PreparedModel& model, const Eigen::Matrix3f& to_view, const Vec3& viewpoint) {
-  std::vector<Seen> seen;
-  seen.reserve(model.points().size() / 2 + 64);
-  for (std::size_t i = 0; i < model.points().size(); ++i) {
-    const Vec3 p = pose * model.points()[i];
-    const Vec3 n = pose.linear() * model.normals()[i];
-    if (!(n.dot(viewpoint - p) > 0.0f)) continue;
-    const Vec3 q = to_view * (p - viewpoint);
-    if (!(q.z() > 0)) continue;
-    seen.push_back({p, n, q.norm(), q.x() / q.z(), q.y() / q.z()});
-  }
-  return seen;
-}
-
 /// The silhouette of the facing points on cells of `size`, with kStepCells + 1 empty cells of
 /// margin; empty when that would take more than kMaxCells.
-Silhouette silhouetteOf(const std::vector<Seen>& seen, float size) {
+Silhouette silhouetteOf(const std::vector<Facing>& seen, float size) {
   Silhouette s;
   float u1 = -INFINITY, v1 = -INFINITY;
   s.u0 = s.v0 = INFINITY;
-  for (const Seen& f : seen) {
+  for (const Facing& f : seen) {
     s.u0 = std::min(s.u0, f.u); u1 = std::max(u1, f.u);
     s.v0 = std::min(s.v0, f.v); v1 = std::max(v1, f.v);
   }
@@ -99,16 +81,16 @@ Silhouette silhouetteOf(const std::vector<Seen>& seen, float size) {
 OutlineEvidence SceneEvidence::outline(const Pose& pose, const PreparedModel& model, float tolerance,
                                        float model_spacing) const {
   OutlineEvidence out;
-  const std::vector<Seen> seen = facingSeen(pose, model, to_view_, viewpoint_);
+  const std::vector<Facing> seen = facingPoints(pose, model, to_view_, viewpoint_, cos_grazing_);
   if (width_ == 0 || seen.empty() || !(model_spacing > 0)) return out;
   float mean_range = 0;
-  for (const Seen& f : seen) mean_range += f.range / static_cast<float>(seen.size());
+  for (const Facing& f : seen) mean_range += f.range / static_cast<float>(seen.size());
   const Silhouette s = silhouetteOf(seen, std::max(bin_, kCellSpacings * model_spacing / mean_range));
   const long steps[4][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}};
   for (long y = 0; y < s.height; ++y)
     for (long x = 0; x < s.width; ++x) {
       if (!s.inside(x, y)) continue;
-      const Seen& f = seen[static_cast<std::size_t>(s.front[static_cast<std::size_t>(y * s.width + x)])];
+      const Facing& f = seen[static_cast<std::size_t>(s.front[static_cast<std::size_t>(y * s.width + x)])];
       // The edge must be one the scan shows: the part seen there, nothing in front of it.
       const long at = cellAt(f.u, f.v);
       if (at < 0 || !(std::abs(nearest_[static_cast<std::size_t>(at)] - f.range) <= 2 * tolerance)) continue;

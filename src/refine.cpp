@@ -13,6 +13,7 @@
 #include <optional>
 #include <fmt/format.h>
 #include <tbb/parallel_for.h>
+#include "facing_points.hpp"
 #include "icp_step.hpp"
 #include "refine_kernels.hpp"
 
@@ -447,16 +448,6 @@ Evidence SceneEvidence::evaluate(const Pose& pose, const Points& model_points, c
   return evaluate(pose, PreparedModel(model_points, model_normals), tolerance, model_spacing, support);
 }
 
-namespace {
-
-/// A sensor-facing point of the posed model, with its range and direction in the image frame.
-struct Facing {
-  Vec3 p, n;  ///< posed point and normal
-  float range, u, v;
-  bool grazing;
-};
-
-/// The posed model's points that face the viewpoint and lie in front of it.
 std::vector<Facing> facingPoints(const Pose& pose, const PreparedModel& model, const Eigen::Matrix3f& to_view,
                                  const Vec3& viewpoint, float cos_grazing_angle) {
   std::vector<Facing> facing;
@@ -480,6 +471,8 @@ std::vector<Facing> facingPoints(const Pose& pose, const PreparedModel& model, c
   }
   return facing;
 }
+
+namespace {
 
 /// The model's own z-buffer on cells of two sample spacings: a facing point with the model's
 /// surface clearly in front of it is hidden by the part itself and is not expected in the scan.
