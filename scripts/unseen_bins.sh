@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Bins the bench never sees: its parts seen from other distances and with other resolutions, IPD
 # parts it does not hold (obj 4, a block; obj 10) seen as the bench sees its bins, and three meshes
-# of ../shared/data/models_common3d (fandisk, rocker arm, bunny; scaled to 58-82 mm, 12 copies)
+# of ../shared/data/models_common3d (fandisk, rocker arm, bunny; scaled to 79-99 mm across, 12 copies)
 # seen by each sensor. Simulated
 # with `binpose simulate`, found with `binpose detect` (default preset), scored with `binpose
 # eval`, summed per view (scripts/unseen_bins.py). A rule set on the bench's bins is checked here
