@@ -145,6 +145,12 @@ IpdBin ipdBin(const std::string& file, std::uint64_t seed, const SensorParams& s
   return b;
 }
 
+/// Whether a detection at `pose` lies on `copy` (ADD-S under 0.1 diameter) the right way round
+/// (MSSD under 10 mm: not turned over).
+bool rightOn(const Pose& pose, const SimulatedInstance& copy, const EvalModel& eval) {
+  return test::addSTo(pose, copy.pose, eval) < 0.1f * eval.diameter && poseErrors(pose, copy.pose, eval).mssd_mm < 10.0f;
+}
+
 /// Of the gears (IPD obj 8, its axis y) lying flat, face to the sensor within 10 degrees and more
 /// than half visible: how many, and how many a detection finds the right way up (ADD-S under
 /// 0.1 diameter, MSSD under 10 mm).
@@ -154,9 +160,8 @@ std::pair<int, int> gearsLyingFlat(const DetectionResult& result, const Simulate
   for (const SimulatedInstance& copy : bin.instances) {
     if (copy.visib_fract <= 0.5f || std::abs(copy.pose.linear().col(1).z()) < face_on) continue;
     ++flat;
-    found += std::any_of(result.detections.begin(), result.detections.end(), [&](const Detection& d) {
-      return test::addSTo(d.pose, copy.pose, eval) < 0.1f * eval.diameter && poseErrors(d.pose, copy.pose, eval).mssd_mm < 10.0f;
-    });
+    found += std::any_of(result.detections.begin(), result.detections.end(),
+                         [&](const Detection& d) { return rightOn(d.pose, copy, eval); });
   }
   return {flat, found};
 }
@@ -249,9 +254,8 @@ TEST(RealSensors, APartNoRuleWasSetOnIsFoundOnStructuredLight) {
   const DetectionResult result = Detector(databaseOf(model), scaledToModel(defaultPreset(), model.diameter)).detect(bin.cloud);
   int right = 0, off = 0;
   for (const Detection& d : result.detections) {
-    const bool on_copy = std::any_of(bin.instances.begin(), bin.instances.end(), [&](const SimulatedInstance& copy) {
-      return test::addSTo(d.pose, copy.pose, eval) < 0.1f * eval.diameter && poseErrors(d.pose, copy.pose, eval).mssd_mm < 10.0f;
-    });
+    const bool on_copy = std::any_of(bin.instances.begin(), bin.instances.end(),
+                                     [&](const SimulatedInstance& copy) { return rightOn(d.pose, copy, eval); });
     (on_copy ? right : off) += 1;
   }
   std::printf("%d right, %d off of %zu detections\n", right, off, result.detections.size());
