@@ -246,6 +246,7 @@ std::string resultJson(const binpose::DetectionResult& r, const binpose::Detecti
   j["timing_ms"] = {{"preprocess", r.timing.preprocess_ms}, {"vote", r.timing.vote_ms}, {"match", r.timing.match_ms}, {"refine", r.timing.refine_ms},
                     {"total", r.timing.total_ms}};
   j["scene_points"] = r.scene_points;
+  j["pixel_stride"] = r.pixel_stride;
   j["flying_points"] = r.flying_points;
   j["sampled_points"] = r.sampled_points;
   j["noise_mm"] = r.noise_mm;
@@ -276,6 +277,8 @@ int runDetect(const DetectOptions& o) {
 
   fmt::print("scene {}: {} points ({} flying pixels dropped), {} sampled ({} on the bin's planes, left out), {} sub-groups; model {:.1f} mm across\n",
              o.scene, r.scene_points, r.flying_points, r.sampled_points, r.plane_points, r.subgroups, diameter);
+  if (r.pixel_stride > 1)
+    fmt::print("depth image thinned to one pixel in each {0} x {0} block: neighbouring pixels share their noise\n", r.pixel_stride);
   fmt::print("{:>4}  {:>6}  {:>5}  {:>27}  {:>8}\n", "rank", "score", "|C|", "position (mm)", "angle");
   for (std::size_t i = 0; i < r.detections.size(); ++i) {
     const auto& d = r.detections[i];

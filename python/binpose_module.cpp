@@ -116,6 +116,7 @@ struct PyResult {
   float least_score = 0;
   std::size_t scene_points = 0;
   std::size_t flying_points = 0;
+  int pixel_stride = 1;
 };
 
 PyResult toPython(const DetectionResult& r) {
@@ -137,6 +138,7 @@ PyResult toPython(const DetectionResult& r) {
   out.least_score = r.least_score;
   out.scene_points = r.scene_points;
   out.flying_points = r.flying_points;
+  out.pixel_stride = r.pixel_stride;
   return out;
 }
 
@@ -296,7 +298,10 @@ PYBIND11_MODULE(binpose, m) {
       .def_readonly("least_score", &PyResult::least_score, "the least score reported: min_score, raised on a rough scan")
       .def_readonly("scene_points", &PyResult::scene_points)
       .def_readonly("flying_points", &PyResult::flying_points,
-                    "the scan's points dropped as flying pixels, between two surfaces at a depth edge");
+                    "the scan's points dropped as flying pixels, between two surfaces at a depth edge")
+      .def_readonly("pixel_stride", &PyResult::pixel_stride,
+                    "a depth image's pixels used: every pixel_stride-th of every pixel_stride-th row (2 or 4 where "
+                    "neighbouring pixels share their noise)");
 
   m.def(
       "guess_viewpoint",

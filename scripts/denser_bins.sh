@@ -5,13 +5,16 @@
 # `binpose detect` (default preset) and scored with `binpose eval`, summed per part and view
 # (scripts/unseen_bins.py). The scene is the same: what changes is what the scan's own noise
 # estimate reads on it.
-#   scripts/denser_bins.sh TAG        (needs a build and scripts/fresh_bins.sh's cache)
+#   scripts/denser_bins.sh TAG [bilinear|nearest]   (needs a build and scripts/fresh_bins.sh's cache)
+# nearest repeats each pixel over 2 x 2, as a depth image registered to a camera with twice the pixels.
 # BINPOSE=path runs another build's detector on the same bins.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-tag=${1:?usage: scripts/denser_bins.sh TAG}
+tag=${1:?usage: scripts/denser_bins.sh TAG [bilinear|nearest]}
+mode=${2:-bilinear}
+cache=out/denser/cache; [ "$mode" = bilinear ] || cache=out/denser/cache-$mode
 models=../shared/data/ipd_parts/models
-mkdir -p out/denser/cache out/denser/db "out/denser/$tag"
+mkdir -p "$cache" out/denser/db "out/denser/$tag"
 py=python3; [ -x /usr/bin/python3 ] && py=/usr/bin/python3  # Debian's, with numpy and PIL
 for part in cap ipd0 ipd8; do
   case $part in
@@ -24,8 +27,8 @@ for part in cap ipd0 ipd8; do
   for k in 1 2 3 4; do
     src=out/fresh/cache/$part-16-sl-seed${k}1$seed
     [ -f "$src/depth.png" ] || { echo "missing $src: run scripts/fresh_bins.sh first" >&2; exit 1; }
-    dense=out/denser/cache/$part-16-sl-seed${k}1$seed
-    [ -f "$dense/depth.png" ] || "$py" scripts/denser_bins.py "$src" "$dense"
+    dense=$cache/$part-16-sl-seed${k}1$seed
+    [ -f "$dense/depth.png" ] || "$py" scripts/denser_bins.py "$src" "$dense" --mode "$mode"
     for view in native:$src dense:$dense; do
       bin=${view#*:}; out=out/denser/$tag/${view%%:*}-$part-$k
       "${BINPOSE:-build/binpose}" detect --model "$db" --scene "$bin/depth.png" --intrinsics "$bin/camera.json" --out "$out.det.json" > "$out.log" 2>&1

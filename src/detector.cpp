@@ -4,6 +4,7 @@
 #include "duplicates.hpp"
 #include "face_hypotheses.hpp"
 #include "face_slide.hpp"
+#include "correlated_noise.hpp"
 #include "flying_pixels.hpp"
 #include "group_schedule.hpp"
 #include "local_votes.hpp"
@@ -158,9 +159,12 @@ DetectionResult Detector::detect(const PointCloud& input) const {
   result.scene_points = input.size();
   if (input.empty()) return result;
   checkCoordinates(input);
-  const std::optional<PointCloud> cleaned = withoutFlyingPixels(input, *settings_);  // points between two surfaces out
-  const PointCloud& scan = cleaned ? *cleaned : input;
-  result.flying_points = input.size() - scan.size();
+  // Pixels whose noise their neighbours share thinned out, then the points between two surfaces.
+  const std::optional<PointCloud> thinned = thinnedToIndependentNoise(input, *settings_, result.pixel_stride);
+  const PointCloud& kept = thinned ? *thinned : input;
+  const std::optional<PointCloud> cleaned = withoutFlyingPixels(kept, *settings_);
+  const PointCloud& scan = cleaned ? *cleaned : kept;
+  result.flying_points = kept.size() - scan.size();
   PreparedScan prepared;  // 5.2.1-5.2.2: sub-sampled, oriented, the bin's planes apart; the noise measured
   prepareScan(scan, *settings_, prepared);
   const StageSettings& p = prepared.params;  // adapted to the scan's noise

@@ -28,6 +28,9 @@ struct StageSettings : DetectionParams {
   /// sharper than that).
   float normal_max_radius = 9.0f;
   float normal_radius = 0.0f;  ///< that radius, set from the noise (mm; 0: the k_normals nearest)
+  /// ... and take every second pixel of a depth image whose noise neighbouring pixels share
+  /// (correlated_noise.hpp), until they no longer do.
+  bool thin_correlated_pixels = true;
   /// ... and drop a depth image's flying pixels, which lie between two surfaces (flying_pixels.hpp).
   bool remove_flying_pixels = true;
   /// Take the bin's floor and walls (connected flat patches of at least plane_min_area) out of

@@ -74,4 +74,23 @@ inline std::vector<Pose> gridOfCopies(const OrientedModel& model, int count, std
   return world;
 }
 
+/// A depth image of `width` x `height` pixels through a pinhole of focal length `fx` (px) at the
+/// image's centre, depth(u, v) in mm (0: no point), as an organized cloud in pixel order.
+template <typename Depth>
+PointCloud depthImage(int width, int height, float fx, Depth depth) {
+  PointCloud cloud;
+  cloud.width = width;
+  cloud.height = height;
+  cloud.fx = cloud.fy = fx;
+  cloud.cx = 0.5f * static_cast<float>(width - 1);
+  cloud.cy = 0.5f * static_cast<float>(height - 1);
+  for (int v = 0; v < height; ++v)
+    for (int u = 0; u < width; ++u)
+      if (const float z = depth(u, v); z > 0) {
+        cloud.points.push_back(Vec3((static_cast<float>(u) - cloud.cx) / fx * z, (static_cast<float>(v) - cloud.cy) / fx * z, z));
+        cloud.pixel.push_back(v * width + u);
+      }
+  return cloud;
+}
+
 }  // namespace binpose::test

@@ -22,20 +22,7 @@ constexpr float kFx = 550.0f;
 /// A depth image of `width` x `height` pixels through a pinhole of focal length kFx, depth(u, v)
 /// in mm (0: no point), as an organized cloud in pixel order.
 PointCloud image(int width, int height, const std::function<float(int, int)>& depth) {
-  PointCloud cloud;
-  cloud.width = width;
-  cloud.height = height;
-  cloud.fx = cloud.fy = kFx;
-  cloud.cx = 0.5f * static_cast<float>(width - 1);
-  cloud.cy = 0.5f * static_cast<float>(height - 1);
-  for (int v = 0; v < height; ++v)
-    for (int u = 0; u < width; ++u)
-      if (const float z = depth(u, v); z > 0) {
-        cloud.points.push_back(
-            Vec3((static_cast<float>(u) - cloud.cx) / kFx * z, (static_cast<float>(v) - cloud.cy) / kFx * z, z));
-        cloud.pixel.push_back(v * width + u);
-      }
-  return cloud;
+  return test::depthImage(width, height, kFx, depth);
 }
 
 }  // namespace

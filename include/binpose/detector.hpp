@@ -32,7 +32,10 @@ struct DetectionResult {
   std::vector<Detection> detections;  ///< best first (by score when verifying, else in order found)
   DetectionTiming timing;
   std::size_t scene_points = 0;    ///< points of the scan
-  std::size_t flying_points = 0;   ///< ... of them flying pixels between two surfaces, dropped (a depth image's)
+  /// A depth image's pixels used: every pixel_stride-th of every pixel_stride-th row (2 or 4 where
+  /// neighbouring pixels share their noise: the rest add that noise and no independent depth).
+  int pixel_stride = 1;
+  std::size_t flying_points = 0;   ///< ... of the points kept, flying pixels between two surfaces, dropped (a depth image's)
   std::size_t sampled_points = 0;  ///< oriented points after sub-sampling
   float noise_mm = 0;              ///< the scan's noise, 1 sigma, measured on it (plane-fit residuals)
   int k_normals = 0;               ///< the normals' neighbours used (k_normals, raised for a noisy scan)

@@ -102,6 +102,18 @@ def test_flying_pixels_at_a_step_are_dropped(caps):
     assert result.flying_points == 24
 
 
+def test_detect_depth_thins_pixels_that_share_their_noise(caps):
+    """A depth image whose pixels repeat over 2 x 2 blocks (one registered to a camera with twice
+    its pixels) has neighbours that share their noise: one pixel of each block is used."""
+    _, db, _, _, _ = caps
+    rng = np.random.default_rng(3)
+    rows, cols = np.mgrid[0:240, 0:320]
+    native = (7600 + 2 * cols + rows + rng.normal(0, 13, (240, 320))).astype(np.uint16)  # 0.1 mm units
+    dense = np.repeat(np.repeat(native, 2, axis=0), 2, axis=1)
+    assert binpose.Detector(db).detect_depth(dense, 1100.0, 1100.0, 319.5, 239.5, 0.1).pixel_stride == 2
+    assert binpose.Detector(db).detect_depth(native, 550.0, 550.0, 159.5, 119.5, 0.1).pixel_stride == 1
+
+
 def test_detect_points_drops_non_finite_rows(caps):
     _, db, camera, truth, depth = caps
     rows, cols = np.nonzero(depth)
