@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
-"""A simulated bin seen by a sensor with twice the pixels whose noise is correlated over two of
-them: its depth image upsampled 2x (bilinear, no mixing with missing pixels; or nearest), the
-intrinsics scaled to match, the ground truth copied (the scene's geometry is the same).
+"""A simulated bin seen by a sensor with more pixels than independent depth samples: its depth
+image upsampled (bilinear, no mixing with missing pixels; or nearest: each pixel repeated, as a
+depth image registered to a sharper camera is), by 2 or any --factor, the intrinsics scaled to
+match, the ground truth copied (the scene's geometry is the same).
 
-  scripts/denser_bins.py SRC_BIN DST_BIN [--mode bilinear|nearest]
+  scripts/denser_bins.py SRC_BIN DST_BIN [--mode bilinear|nearest] [--factor F]
 """
 import argparse
 import json
@@ -19,6 +20,7 @@ def main():
     ap.add_argument("src")
     ap.add_argument("dst")
     ap.add_argument("--mode", choices=("bilinear", "nearest"), default="bilinear")
+    ap.add_argument("--factor", type=float, default=2.0)
     a = ap.parse_args()
     os.makedirs(a.dst, exist_ok=True)
     for f in os.listdir(a.src):
@@ -26,7 +28,7 @@ def main():
             shutil.copy(os.path.join(a.src, f), a.dst)
     depth = np.array(Image.open(os.path.join(a.src, "depth.png"))).astype(np.float32)
     h, w = depth.shape
-    size = (2 * w, 2 * h)
+    size = (round(a.factor * w), round(a.factor * h))
     if a.mode == "nearest":
         up = np.array(Image.fromarray(depth).resize(size, Image.NEAREST))
     else:
@@ -36,7 +38,9 @@ def main():
     Image.fromarray(np.round(up).astype(np.uint16)).save(os.path.join(a.dst, "depth.png"))
     with open(os.path.join(a.src, "camera.json")) as f:
         cam = json.load(f)
-    cam.update(fx=2 * cam["fx"], fy=2 * cam["fy"], cx=2 * cam["cx"] + 0.5, cy=2 * cam["cy"] + 0.5, width=2 * w, height=2 * h)
+    sx, sy = size[0] / w, size[1] / h  # pixel centres: (c + 0.5) scales as the image's edges do
+    cam.update(fx=sx * cam["fx"], fy=sy * cam["fy"], cx=sx * (cam["cx"] + 0.5) - 0.5, cy=sy * (cam["cy"] + 0.5) - 0.5,
+               width=size[0], height=size[1])
     with open(os.path.join(a.dst, "camera.json"), "w") as f:
         json.dump(cam, f, indent=1)
 

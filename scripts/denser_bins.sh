@@ -5,14 +5,16 @@
 # `binpose detect` (default preset) and scored with `binpose eval`, summed per part and view
 # (scripts/unseen_bins.py). The scene is the same: what changes is what the scan's own noise
 # estimate reads on it.
-#   scripts/denser_bins.sh TAG [bilinear|nearest]   (needs a build and scripts/fresh_bins.sh's cache)
-# nearest repeats each pixel over 2 x 2, as a depth image registered to a camera with twice the pixels.
+#   scripts/denser_bins.sh TAG [bilinear|nearest [FACTOR]]   (needs a build and scripts/fresh_bins.sh's cache)
+# nearest repeats each pixel (over 2 x 2 by default), as a depth image registered to a camera with
+# FACTOR times the pixels each way does.
 # BINPOSE=path runs another build's detector on the same bins.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-tag=${1:?usage: scripts/denser_bins.sh TAG [bilinear|nearest]}
+tag=${1:?usage: scripts/denser_bins.sh TAG [bilinear|nearest [FACTOR]]}
 mode=${2:-bilinear}
-cache=out/denser/cache; [ "$mode" = bilinear ] || cache=out/denser/cache-$mode
+factor=${3:-2}
+cache=out/denser/cache; [ "$mode" = bilinear ] || cache=out/denser/cache-$mode-$factor
 models=../shared/data/ipd_parts/models
 mkdir -p "$cache" out/denser/db "out/denser/$tag"
 py=python3; [ -x /usr/bin/python3 ] && py=/usr/bin/python3  # Debian's, with numpy and PIL
@@ -28,7 +30,7 @@ for part in cap ipd0 ipd8; do
     src=out/fresh/cache/$part-16-sl-seed${k}1$seed
     [ -f "$src/depth.png" ] || { echo "missing $src: run scripts/fresh_bins.sh first" >&2; exit 1; }
     dense=$cache/$part-16-sl-seed${k}1$seed
-    [ -f "$dense/depth.png" ] || "$py" scripts/denser_bins.py "$src" "$dense" --mode "$mode"
+    [ -f "$dense/depth.png" ] || "$py" scripts/denser_bins.py "$src" "$dense" --mode "$mode" --factor "$factor"
     for view in native:$src dense:$dense; do
       bin=${view#*:}; out=out/denser/$tag/${view%%:*}-$part-$k
       "${BINPOSE:-build/binpose}" detect --model "$db" --scene "$bin/depth.png" --intrinsics "$bin/camera.json" --out "$out.det.json" > "$out.log" 2>&1
