@@ -278,7 +278,7 @@ int runDetect(const DetectOptions& o) {
   fmt::print("scene {}: {} points ({} flying pixels dropped), {} sampled ({} on the bin's planes, left out), {} sub-groups; model {:.1f} mm across\n",
              o.scene, r.scene_points, r.flying_points, r.sampled_points, r.plane_points, r.subgroups, diameter);
   if (r.pixel_stride > 1)
-    fmt::print("depth image thinned to one pixel in each {0} x {0} block: neighbouring pixels share their noise\n", r.pixel_stride);
+    fmt::print("depth image thinned to one pixel in each {0} x {0} block: its depths are copies over blocks of pixels\n", r.pixel_stride);
   fmt::print("{:>4}  {:>6}  {:>5}  {:>27}  {:>8}\n", "rank", "score", "|C|", "position (mm)", "angle");
   for (std::size_t i = 0; i < r.detections.size(); ++i) {
     const auto& d = r.detections[i];

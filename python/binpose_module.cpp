@@ -301,7 +301,7 @@ PYBIND11_MODULE(binpose, m) {
                     "the scan's points dropped as flying pixels, between two surfaces at a depth edge")
       .def_readonly("pixel_stride", &PyResult::pixel_stride,
                     "a depth image's pixels used: every pixel_stride-th of every pixel_stride-th row (2 or 4 where "
-                    "neighbouring pixels share their noise)");
+                    "each depth is copied over a block of pixels: registered to a sharper camera)");
 
   m.def(
       "guess_viewpoint",

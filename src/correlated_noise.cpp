@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <limits>
 #include <vector>
 
 namespace binpose {
@@ -22,14 +21,22 @@ constexpr int kWindowPixels = kSide * kSide;
 constexpr std::size_t kLeastWindows = 32;
 /// A window whose residuals' RMS is under this (mm) is noiseless: floating point rounding alone.
 constexpr double kLeastResidual = 1e-4;
-/// Over this correlation the noise is shared by neighbouring pixels. Measured on the simulated
+/// Over this correlation the noise is shared by neighbouring pixels ... Measured on the simulated
 /// sensors' bins (ideal, industrial, structured light, time of flight; the 170 fresh and unseen
 /// bins of docs/benchmarks.md, 500 to 1500 mm, and a 3 MP industrial view): -0.33 to -0.17; on
 /// the real Kinect frames of IC-BIN -0.16 to -0.10; on structured-light bins and the IC-BIN frames
-/// upsampled 2x by repeating each pixel over 2 x 2 0.03-0.05 (their 25 pixels hold 9 samples, and
-/// the fit's 6 terms take most of what they share), bilinear 0.15-0.17. The margin is wide on the
-/// side of the scans matched well today: a scan it misses is matched as before.
+/// upsampled 2x to 4x by repeating each pixel 0.03-0.09 (at 2x their 25 pixels hold 9 samples,
+/// and the fit's 6 terms take most of what they share), bilinear 0.15-0.17. The margin is wide on
+/// the side of the scans matched well today: a scan it misses is matched as before.
 constexpr float kCorrelated = 0.0f;
+/// ... and from this share of repeated depths on, by copies of one depth (a registration to a
+/// camera with 2 or more times the pixels each way repeats every depth along both: 1.000 on all
+/// of the bins and frames above, 0.64-0.72 at 1.5 times). Native scans read 0-0.44 (simulated:
+/// the structured-light model's disparity steps the most) and 0.62-0.87 (IC-BIN's depths in whole
+/// millimetres, in steps of 3 mm there); smoothed or interpolated ones 0-0.08. Their pixels carry
+/// a mix of samples, not copies: halved, they keep the mix and lose half of the scan (the bins
+/// smoothed by 0.7 pixel: 89 found unthinned, 67 halved).
+constexpr float kRepeatedShare = 0.95f;
 /// The image is halved at most this many times (to a quarter of its columns and rows) ...
 constexpr int kMostHalvings = 2;
 /// ... and never below this many columns and rows (QQVGA).
@@ -87,6 +94,14 @@ float neighbourCorrelation(const Window& r) {
   return static_cast<float>((products / pairs) / (squares / kWindowPixels));
 }
 
+/// Whether the window's centre depth is repeated exactly by a pixel beside it and by one above or
+/// below it.
+bool repeatedAlongBoth(const Window& depth) {
+  constexpr int c = kHalf * kSide + kHalf;
+  const double z = depth(c);
+  return (depth(c - 1) == z || depth(c + 1) == z) && (depth(c - kSide) == z || depth(c + kSide) == z);
+}
+
 /// The depths of the full window around point i's pixel (row-major), mm; false when a pixel of
 /// it has none.
 bool windowAround(const PointCloud& scan, std::size_t i, Window& window) {
@@ -103,21 +118,26 @@ bool windowAround(const PointCloud& scan, std::size_t i, Window& window) {
 
 }  // namespace
 
-float neighbourNoiseCorrelation(const PointCloud& scan) {
-  constexpr float kUnknown = std::numeric_limits<float>::quiet_NaN();
-  if (!depthImage(scan)) return kUnknown;
+PixelNoise pixelNoise(const PointCloud& scan) {
+  PixelNoise out;
+  if (!depthImage(scan)) return out;
   const std::size_t step = std::max<std::size_t>(1, scan.size() / kWindows);
   std::vector<float> correlations;
+  std::size_t repeated = 0;
   Window depths;
   for (std::size_t i = step / 2; i < scan.size(); i += step) {
     if (!windowAround(scan, i, depths)) continue;
     const Window residual = residualMaker() * depths;
-    if (residual.norm() >= kLeastResidual * std::sqrt(double(kWindowPixels))) correlations.push_back(neighbourCorrelation(residual));
+    if (residual.norm() < kLeastResidual * std::sqrt(double(kWindowPixels))) continue;
+    correlations.push_back(neighbourCorrelation(residual));
+    repeated += repeatedAlongBoth(depths);
   }
-  if (correlations.size() < kLeastWindows) return kUnknown;
+  if (correlations.size() < kLeastWindows) return out;
   const auto quartile = correlations.begin() + static_cast<long>(correlations.size() / 4);
   std::nth_element(correlations.begin(), quartile, correlations.end());
-  return *quartile;
+  out.correlation = *quartile;
+  out.repeated = static_cast<float>(repeated) / static_cast<float>(correlations.size());
+  return out;
 }
 
 PointCloud halvedImage(const PointCloud& scan) {
@@ -145,7 +165,8 @@ std::optional<PointCloud> thinnedToIndependentNoise(const PointCloud& scan, cons
   for (int halvings = 0; halvings < kMostHalvings; ++halvings) {
     const PointCloud& now = out ? *out : scan;
     if ((now.width + 1) / 2 < kLeastColumns || (now.height + 1) / 2 < kLeastRows) break;
-    if (!(neighbourNoiseCorrelation(now) > kCorrelated)) break;
+    const PixelNoise noise = pixelNoise(now);
+    if (!(noise.correlation > kCorrelated && noise.repeated >= kRepeatedShare)) break;
     out = halvedImage(now);
     stride *= 2;
   }

@@ -28,8 +28,8 @@ struct StageSettings : DetectionParams {
   /// sharper than that).
   float normal_max_radius = 9.0f;
   float normal_radius = 0.0f;  ///< that radius, set from the noise (mm; 0: the k_normals nearest)
-  /// ... and take every second pixel of a depth image whose noise neighbouring pixels share
-  /// (correlated_noise.hpp), until they no longer do.
+  /// ... and take every second pixel of every second row of a depth image whose depths are copied
+  /// over blocks of pixels (registered to a sharper camera; correlated_noise.hpp), until they are not.
   bool thin_correlated_pixels = true;
   /// ... and drop a depth image's flying pixels, which lie between two surfaces (flying_pixels.hpp).
   bool remove_flying_pixels = true;

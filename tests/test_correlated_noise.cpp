@@ -56,23 +56,28 @@ constexpr int kWidth = 320, kHeight = 240;
 
 TEST(CorrelatedNoise, IndependentNoiseReadsNegativeSharedNoisePositive) {
   const std::vector<float> depth = noisyDepths(kWidth, kHeight, 7);
-  const float independent = neighbourNoiseCorrelation(test::depthImage(kWidth, kHeight, kFx, [&](int u, int v) { return at(depth, kWidth, u, v); }));
-  const float repeated = neighbourNoiseCorrelation(repeatedTwice(depth, kWidth, kHeight));
-  const float interpolated = neighbourNoiseCorrelation(interpolatedTwice(depth, kWidth, kHeight));
-  std::printf("independent %.3f, repeated %.3f, interpolated %.3f\n", independent, repeated, interpolated);
-  EXPECT_LT(independent, -0.15f);  // a 6-term fit to 25 independent residuals: about -0.3
-  EXPECT_GT(repeated, 0.0f);        // shared noise: over the threshold (0) the scan is thinned at
-  EXPECT_GT(interpolated, 0.0f);
+  const PixelNoise independent = pixelNoise(test::depthImage(kWidth, kHeight, kFx, [&](int u, int v) { return at(depth, kWidth, u, v); }));
+  const PixelNoise repeated = pixelNoise(repeatedTwice(depth, kWidth, kHeight));
+  const PixelNoise interpolated = pixelNoise(interpolatedTwice(depth, kWidth, kHeight));
+  std::printf("correlation / repeated: independent %.3f / %.2f, repeated %.3f / %.2f, interpolated %.3f / %.2f\n",
+              independent.correlation, independent.repeated, repeated.correlation, repeated.repeated, interpolated.correlation,
+              interpolated.repeated);
+  EXPECT_LT(independent.correlation, -0.15f);  // a 6-term fit to 25 independent residuals: about -0.3
+  EXPECT_GT(repeated.correlation, 0.0f);       // shared noise: over 0
+  EXPECT_GT(interpolated.correlation, 0.0f);
+  EXPECT_LT(independent.repeated, 0.1f);  // continuous depths: none repeated
+  EXPECT_EQ(repeated.repeated, 1.0f);     // every depth copied over its 2 x 2 block
+  EXPECT_LT(interpolated.repeated, 0.1f);
 }
 
 TEST(CorrelatedNoise, NoDepthImageCannotBeJudged) {
   PointCloud cloud = test::depthImage(kWidth, kHeight, kFx, [](int, int) { return 800.0f; });
-  EXPECT_TRUE(std::isnan(neighbourNoiseCorrelation(cloud)));  // no noise at all
+  EXPECT_TRUE(std::isnan(pixelNoise(cloud).correlation));  // no noise at all
   cloud.fx = 0;  // no pinhole: not a depth image
-  EXPECT_TRUE(std::isnan(neighbourNoiseCorrelation(cloud)));
+  EXPECT_TRUE(std::isnan(pixelNoise(cloud).repeated));
   PointCloud shuffled = test::depthImage(kWidth, kHeight, kFx, [](int u, int) { return 800.0f + static_cast<float>(u % 3); });
   std::swap(shuffled.pixel[10], shuffled.pixel[11]);  // out of pixel order
-  EXPECT_TRUE(std::isnan(neighbourNoiseCorrelation(shuffled)));
+  EXPECT_TRUE(std::isnan(pixelNoise(shuffled).correlation));
 }
 
 TEST(CorrelatedNoise, RepeatedPixelsAreThinnedBackToTheOriginalImage) {
@@ -97,6 +102,9 @@ TEST(CorrelatedNoise, RepeatedPixelsAreThinnedBackToTheOriginalImage) {
   }
   EXPECT_FALSE(thinnedToIndependentNoise(original, p, stride).has_value());  // its noise is its own
   EXPECT_EQ(stride, 1);
+  // Interpolated pixels share their noise too, but hold mixes of samples, not copies: halved, they
+  // would keep the mix and lose half of the scan.
+  EXPECT_FALSE(thinnedToIndependentNoise(interpolatedTwice(depth, kWidth, kHeight), p, stride).has_value());
   p.thin_correlated_pixels = false;
   EXPECT_FALSE(thinnedToIndependentNoise(dense, p, stride).has_value());
 }

@@ -33,7 +33,8 @@ struct DetectionResult {
   DetectionTiming timing;
   std::size_t scene_points = 0;    ///< points of the scan
   /// A depth image's pixels used: every pixel_stride-th of every pixel_stride-th row (2 or 4 where
-  /// neighbouring pixels share their noise: the rest add that noise and no independent depth).
+  /// each depth is copied over a block of pixels, as a registration to a sharper camera gives: the
+  /// copies add no independent depth and hide the noise).
   int pixel_stride = 1;
   std::size_t flying_points = 0;   ///< ... of the points kept, flying pixels between two surfaces, dropped (a depth image's)
   std::size_t sampled_points = 0;  ///< oriented points after sub-sampling
