@@ -1,5 +1,6 @@
 // PCD reader: DATA ascii, binary and binary_compressed (LZF), organized or not.
 #include "io_detail.hpp"
+#include "pinhole_fit.hpp"
 
 #include <binpose/io.hpp>
 
@@ -251,6 +252,7 @@ PointCloud readPcd(const std::string& path, double scale) {
       cloud.normals.push_back(n);
     }
   }
+  fitPinhole(cloud);  // an OpenNI or ROS frame: its points on their pixels' rays
   return cloud;
 }
 

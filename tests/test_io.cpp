@@ -2,6 +2,7 @@
 #include <binpose/geometry.hpp>
 #include <binpose/io.hpp>
 
+#include "pinhole_fit.hpp"
 #include "test_util.hpp"
 
 #include <nlohmann/json.hpp>
@@ -217,6 +218,27 @@ TEST(PcdReader, MilkSceneBinaryCompressedOrganized) {
   // organized: a pixel's ray passes through its point (x/z grows with the column)
   const std::size_t a = 1000, b = scene.size() - 1000;
   EXPECT_LT(scene.pixel[a], scene.pixel[b]);
+}
+
+// An OpenNI frame's PCD gives its pixels but not its camera: the pinhole its points lie on is
+// fitted (a Kinect's 525 px focal length, the image's centre), and the frame is then read as a
+// depth image. The same points moved out of the camera's frame lie on no pinhole's rays.
+TEST(PcdReader, OrganizedFrameGetsThePinholeItsPointsLieOn) {
+  REQUIRE_DATA("pcl_milk/milk_cartoon_all_small_clorox.pcd");
+  const PointCloud scene = readPcd(dataPath("pcl_milk/milk_cartoon_all_small_clorox.pcd"), unitScale(Units::Metres));
+  EXPECT_NEAR(scene.fx, 525.0f, 0.01f);
+  EXPECT_NEAR(scene.fy, 525.0f, 0.01f);
+  EXPECT_NEAR(scene.cx, 319.5f, 0.01f);
+  EXPECT_NEAR(scene.cy, 239.5f, 0.01f);
+  PointCloud moved = scene;
+  moved.fx = moved.fy = moved.cx = moved.cy = 0.0f;
+  for (Vec3& p : moved.points) p += Vec3(5.0f, 0.0f, 0.0f);  // 5 mm sideways
+  EXPECT_FALSE(fitPinhole(moved));
+  EXPECT_EQ(moved.fx, 0.0f);
+  PointCloud again = scene;  // intrinsics already known: kept
+  again.fx = 600.0f;
+  EXPECT_FALSE(fitPinhole(again));
+  EXPECT_EQ(again.fx, 600.0f);
 }
 
 TEST(PcdReader, MilkModelIsASubsetOfTheScene) {
