@@ -1,10 +1,10 @@
 // Online recognition (thesis chapter 5): the redundant sub-group pipeline as a sequence of stages.
 #include <binpose/detector.hpp>
 
+#include "correlated_noise.hpp"
 #include "duplicates.hpp"
 #include "face_hypotheses.hpp"
 #include "face_slide.hpp"
-#include "correlated_noise.hpp"
 #include "flying_pixels.hpp"
 #include "group_schedule.hpp"
 #include "local_votes.hpp"
@@ -159,7 +159,7 @@ DetectionResult Detector::detect(const PointCloud& input) const {
   result.scene_points = input.size();
   if (input.empty()) return result;
   checkCoordinates(input);
-  // Pixels whose noise their neighbours share thinned out, then the points between two surfaces.
+  // Depths copied over blocks of pixels thinned out, then the points between two surfaces.
   const std::optional<PointCloud> thinned = thinnedToIndependentNoise(input, *settings_, result.pixel_stride);
   const PointCloud& kept = thinned ? *thinned : input;
   const std::optional<PointCloud> cleaned = withoutFlyingPixels(kept, *settings_);
