@@ -5,13 +5,13 @@
 # `binpose detect` (default preset) and scored with `binpose eval`, summed per part and view
 # (scripts/unseen_bins.py). The scene is the same: what changes is what the scan's own noise
 # estimate reads on it.
-#   scripts/denser_bins.sh TAG [bilinear|nearest [FACTOR]]   (needs a build and scripts/fresh_bins.sh's cache)
+#   scripts/denser_bins.sh TAG [bilinear|nearest|smooth [FACTOR]]   (needs a build and scripts/fresh_bins.sh's cache)
 # nearest repeats each pixel (over 2 x 2 by default), as a depth image registered to a camera with
-# FACTOR times the pixels each way does.
+# FACTOR times the pixels each way does; smooth keeps the resolution and smooths by FACTOR pixels.
 # BINPOSE=path runs another build's detector on the same bins.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-tag=${1:?usage: scripts/denser_bins.sh TAG [bilinear|nearest [FACTOR]]}
+tag=${1:?usage: scripts/denser_bins.sh TAG [bilinear|nearest|smooth [FACTOR]]}
 mode=${2:-bilinear}
 factor=${3:-2}
 cache=out/denser/cache; [ "$mode" = bilinear ] || cache=out/denser/cache-$mode-$factor
