@@ -1,5 +1,6 @@
 // PLY reader and writer (ascii, binary little- and big-endian).
 #include "io_detail.hpp"
+#include "pinhole_fit.hpp"
 
 #include <binpose/io.hpp>
 
@@ -306,7 +307,11 @@ PointCloud toCloud(PlyData&& data) {
 
 Mesh readPlyMesh(const std::string& path, double scale) { return toMesh(path, readPly(path, scale)); }
 
-PointCloud readPlyCloud(const std::string& path, double scale) { return toCloud(readPly(path, scale)); }
+PointCloud readPlyCloud(const std::string& path, double scale) {
+  PointCloud cloud = toCloud(readPly(path, scale));
+  fitPixelLattice(cloud);  // a depth image saved in its camera's frame
+  return cloud;
+}
 
 ModelFile readModelFile(const std::string& path, double scale) {
   ModelFile file;

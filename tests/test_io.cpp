@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 
 using namespace binpose;
@@ -106,6 +107,40 @@ TEST(PlyReader, IpdPartsBinaryMatchModelsInfo) {
     EXPECT_NEAR(hi.y() - lo.y(), m["size_y"].get<double>(), 1e-3) << file;
     EXPECT_NEAR(hi.z() - lo.z(), m["size_z"].get<double>(), 1e-3) << file;
   }
+}
+
+// A depth image saved as a PLY in its camera's frame (points only, holes dropped) is read back as
+// the depth image: the pixel lattice of its points' x / z and y / z gives its focal lengths, its
+// pixels and the camera at the origin. The same points moved 5 mm sideways lie on no lattice.
+TEST(PlyReader, DepthImageSavedAsPlyGetsItsPixelsBack) {
+  constexpr float kF = 550.0f, kCx = 99.5f, kCy = 74.5f;
+  Points pts;
+  std::vector<std::int32_t> pixels;
+  for (int v = 0; v < 150; ++v)
+    for (int u = 0; u < 200; ++u) {
+      if ((u * 7 + v * 3) % 11 == 0) continue;  // holes
+      const float z = 700.0f + 0.3f * float(u) + 2.0f * std::sin(0.1f * float(v));
+      pts.emplace_back((float(u) - kCx) / kF * z, (float(v) - kCy) / kF * z, z);
+      pixels.push_back(v * 200 + u);
+    }
+  const std::string path = test::tempPath("image.ply");
+  writePly(path, pts);
+  const PointCloud back = readPlyCloud(path);
+  ASSERT_TRUE(back.organized());
+  EXPECT_NEAR(back.fx, kF, 1e-3f);
+  EXPECT_NEAR(back.fy, kF, 1e-3f);
+  EXPECT_NEAR(back.cx, kCx, 1e-3f);
+  EXPECT_NEAR(back.cy, kCy, 1e-3f);
+  EXPECT_EQ(back.width, 200);
+  EXPECT_EQ(back.height, 150);
+  EXPECT_TRUE(back.has_viewpoint);
+  ASSERT_EQ(back.pixel, pixels);  // every point on its own pixel, in pixel order
+  Points moved = pts;
+  for (Vec3& p : moved) p += Vec3(5.0f, 0.0f, 0.0f);
+  writePly(path, moved);
+  const PointCloud elsewhere = readPlyCloud(path);
+  EXPECT_FALSE(elsewhere.organized());
+  EXPECT_EQ(elsewhere.fx, 0.0f);
 }
 
 TEST(PlyReader, RoundTripAllThreeEncodings) {
