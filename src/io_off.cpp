@@ -4,6 +4,9 @@
 
 #include <binpose/io.hpp>
 
+#include <cmath>
+#include <limits>
+
 namespace binpose {
 namespace {
 
@@ -33,6 +36,9 @@ Vec3 vertexOf(const std::string& path, const std::vector<std::string_view>& word
   for (int k = 0; k < 3; ++k)
     if (!detail::parseNumber(words[k], v[k]) || !std::isfinite(v[k]))
       detail::fail(path, fmt::format("OFF vertex {} has a bad coordinate '{}'", i, words[k]));
+  for (int k = 0; k < 3; ++k)
+    if (!(std::abs(v[k] * scale) <= double(std::numeric_limits<float>::max())))  // finite as a double, past a float's range
+      detail::fail(path, fmt::format("OFF vertex {} has a coordinate out of range '{}'", i, words[k]));
   return Vec3(float(v[0] * scale), float(v[1] * scale), float(v[2] * scale));
 }
 

@@ -390,6 +390,7 @@ TEST(MeshReader, OffWithCommentsQuadsAndMetres) {
       {"OFF\n4 1 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n5 0 1 2\n", "face 0 lists 5 vertices but gives 3"},
       {"OFF\n4 2 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2\n", "truncated"},
       {"OFF\n4 1 0\n0 0 0\n1 nan 0\n0 1 0\n0 0 1\n3 0 1 2\n", "bad coordinate"},
+      {"OFF\n4 1 0\n0 0 0\n1 5e69 0\n0 1 0\n0 0 1\n3 0 1 2\n", "out of range"},  // a double, not a float
       {"OFF\n1e30 1 0\n", "vertex count"},
       {"PLY\n", "no OFF keyword"},
   };
