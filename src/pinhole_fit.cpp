@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <numeric>
 #include <vector>
 
 namespace binpose {
@@ -74,17 +75,24 @@ bool latticeOf(const std::vector<double>& t, double& f, double& c, std::vector<l
   return f > 0 && line.worst <= kMostResidual;
 }
 
+/// Each point's image on the plane z = 1 (x / z and y / z, where a pinhole at the origin sees it);
+/// false when a point is not in front of the origin.
+bool imagePlane(const Points& points, std::vector<double>& tx, std::vector<double>& ty) {
+  tx.resize(points.size()), ty.resize(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Vec3& p = points[i];
+    if (!(p.z() > 0) || !p.allFinite()) return false;
+    tx[i] = double(p.x()) / p.z(), ty[i] = double(p.y()) / p.z();
+  }
+  return true;
+}
+
 }  // namespace
 
 bool fitPixelLattice(PointCloud& cloud) {
   const std::size_t n = cloud.size();
-  if (cloud.organized() || cloud.fx > 0 || n < kLeastPoints) return false;
-  std::vector<double> tx(n), ty(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    const Vec3& p = cloud.points[i];
-    if (!(p.z() > 0) || !p.allFinite()) return false;
-    tx[i] = double(p.x()) / p.z(), ty[i] = double(p.y()) / p.z();
-  }
+  std::vector<double> tx, ty;
+  if (cloud.organized() || cloud.fx > 0 || n < kLeastPoints || !imagePlane(cloud.points, tx, ty)) return false;
   double fx = 0, fy = 0, cx = 0, cy = 0;
   std::vector<long> u, v;
   if (!latticeOf(tx, fx, cx, u) || !latticeOf(ty, fy, cy, v)) return false;
@@ -93,7 +101,7 @@ bool fitPixelLattice(PointCloud& cloud) {
   std::vector<std::int64_t> pixel(n);
   for (std::size_t i = 0; i < n; ++i) pixel[i] = v[i] * width + u[i];
   std::vector<std::uint32_t> order(n);
-  for (std::size_t i = 0; i < n; ++i) order[i] = std::uint32_t(i);
+  std::iota(order.begin(), order.end(), 0u);
   std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return pixel[a] < pixel[b]; });
   for (std::size_t i = 1; i < n; ++i)
     if (pixel[order[i]] == pixel[order[i - 1]]) return false;  // two points on one pixel: not one view
@@ -113,16 +121,12 @@ bool fitPixelLattice(PointCloud& cloud) {
 
 bool fitPinhole(PointCloud& cloud) {
   const std::size_t n = cloud.size();
-  if (!cloud.organized() || cloud.fx > 0 || cloud.pixel.size() != n || n < kLeastPoints) return false;
-  for (const Vec3& p : cloud.points)
-    if (!(p.z() > 0) || !p.allFinite()) return false;
+  std::vector<double> tx, ty;
+  if (!cloud.organized() || cloud.fx > 0 || cloud.pixel.size() != n || n < kLeastPoints || !imagePlane(cloud.points, tx, ty))
+    return false;
   const auto width = static_cast<double>(cloud.width);
-  const Line u = fitLine(n, [&](std::size_t i) {
-    return std::pair{double(cloud.points[i].x()) / cloud.points[i].z(), std::fmod(double(cloud.pixel[i]), width)};
-  });
-  const Line v = fitLine(n, [&](std::size_t i) {
-    return std::pair{double(cloud.points[i].y()) / cloud.points[i].z(), std::floor(double(cloud.pixel[i]) / width)};
-  });
+  const Line u = fitLine(n, [&](std::size_t i) { return std::pair{tx[i], std::fmod(double(cloud.pixel[i]), width)}; });
+  const Line v = fitLine(n, [&](std::size_t i) { return std::pair{ty[i], std::floor(double(cloud.pixel[i]) / width)}; });
   if (!(u.f > 0 && v.f > 0 && u.worst <= kMostResidual && v.worst <= kMostResidual)) return false;
   cloud.fx = float(u.f), cloud.fy = float(v.f), cloud.cx = float(u.c), cloud.cy = float(v.c);
   return true;

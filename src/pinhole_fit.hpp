@@ -16,7 +16,8 @@ bool fitPinhole(PointCloud& cloud);
 
 /// The pixels and pinhole of an unorganized cloud in a depth camera's frame (a depth image saved
 /// as a PLY): its points' x / z and y / z fall on a lattice (u - cx) / fx, (v - cy) / fy. The step
-/// is the median gap between the distinct values, the phase the first's; when every point lies
+/// is the median gap between the distinct values of a sample, the least value is pixel 0, and both
+/// are refined by least squares over every point; when every point lies
 /// within 0.01 pixel of a lattice point, no two on one, and the image spans at most 64 pixels a
 /// point (at most 16384 a side), the cloud is given its pixels (its points reordered by them),
 /// intrinsics, and the origin as viewpoint, and true is returned. Otherwise (a cloud in another
