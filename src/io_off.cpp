@@ -33,12 +33,12 @@ std::vector<std::vector<std::string_view>> contentLines(std::string_view text) {
 Vec3 vertexOf(const std::string& path, const std::vector<std::string_view>& words, std::size_t i, double scale) {
   double v[3];
   if (words.size() < 3) detail::fail(path, fmt::format("OFF vertex {} has fewer than 3 coordinates", i));
-  for (int k = 0; k < 3; ++k)
+  for (int k = 0; k < 3; ++k) {
     if (!detail::parseNumber(words[k], v[k]) || !std::isfinite(v[k]))
       detail::fail(path, fmt::format("OFF vertex {} has a bad coordinate '{}'", i, words[k]));
-  for (int k = 0; k < 3; ++k)
     if (!(std::abs(v[k] * scale) <= double(std::numeric_limits<float>::max())))  // finite as a double, past a float's range
       detail::fail(path, fmt::format("OFF vertex {} has a coordinate out of range '{}'", i, words[k]));
+  }
   return Vec3(float(v[0] * scale), float(v[1] * scale), float(v[2] * scale));
 }
 
