@@ -76,7 +76,8 @@ GroupSchedule::GroupSchedule(const ModelDatabase& db, const StageSettings& p, co
       may_vote_(may_vote),
       state_(state),
       threads_(workerThreads()),
-      parallel_(db, matcher.symmetry.candidatesPerPoint(p), p.candidate_spacing, matcher.symmetry.votingOrbits()),
+      parallel_(db, matcher.symmetry.candidatesPerPoint(p), p.candidate_spacing, matcher.symmetry.votingOrbits(),
+                PartSymmetry::mildOutliers(p)),
       largest_clique_(groups.size(), 0) {
   const std::size_t batch = kGroupsPerThread * std::max<std::size_t>(1, threads_);
   for (std::size_t k = 0; k < batch; ++k) slots_.emplace_back(db, p, matcher.symmetry);

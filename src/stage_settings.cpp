@@ -18,6 +18,7 @@ StageSettings thesisStages() {
   s.remove_planes = false;
   s.candidates_per_point = 1;
   s.candidate_spacing = 0.0f;
+  s.mild_outlier_candidates = 0;
   s.local_votes = false;
   s.voter_spacing = 0.0f;
   s.partner_spacing = 0.0f;
@@ -125,6 +126,9 @@ void validateStages(const StageSettings& s) {
   range(s.prescreen_retry_steps, 0, 20, "prescreen_retry_steps");
   share(s.prescreen_retry_share, "prescreen_retry_share");
   range(s.candidates_per_point, 1, 64, "candidates_per_point");
+  range(s.mild_outlier_candidates, 0, 64, "mild_outlier_candidates");
+  if (!(s.mild_outlier_spreads >= 0 && s.mild_outlier_spreads <= 3))
+    throw Error(fmt::format("mild_outlier_spreads must lie in [0, 3] fourth-spreads, got {}", s.mild_outlier_spreads));
   if (s.clique_work_limit < 1) throw Error("clique_work_limit must be >= 1");
   if (!(s.pair_angle_tolerance >= 0 && s.pair_angle_tolerance < 180))
     throw Error(fmt::format("pair_angle_tolerance must lie in [0, 180) degrees, got {}", s.pair_angle_tolerance));

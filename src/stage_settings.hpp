@@ -50,6 +50,12 @@ struct StageSettings : DetectionParams {
   // --- votes (4.3-4.4) ----------------------------------------------------------------------
   int candidates_per_point = 12;  ///< model points kept per scene point (the thesis: 1, eq. 12's maximum)
   float candidate_spacing = 2.7f; ///< least model distance between a point's candidates, mm (0: none)
+  /// A point whose votes hold no upper outlier (eq. 11: none above x_u + 3 xi_s) keeps its
+  /// mild_outlier_candidates most voted above x_u + mild_outlier_spreads xi_s (MildOutliers in
+  /// voting.hpp; 0 candidates: none, as the thesis). On a large or smooth part (the bunny, a cup)
+  /// the right model point is often among a point's few most voted, rarely 3 spreads clear.
+  float mild_outlier_spreads = 2.0f;
+  int mild_outlier_candidates = 4;
   /// Each scene point votes once with its neighbours within vote_radius, and its sub-groups
   /// reuse its candidates (false: it votes in every sub-group with that group's points, 4.3).
   bool local_votes = true;

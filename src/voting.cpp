@@ -145,8 +145,8 @@ void Voter::countDense(std::vector<Count>& counters) {
   dense_lists_.clear();
 }
 
-Voter::Voter(const ModelDatabase& db, int keep, float spacing, const Orbits* orbits)
-    : db_(db), keep_(keep), spacing_(spacing),
+Voter::Voter(const ModelDatabase& db, int keep, float spacing, const Orbits* orbits, MildOutliers mild)
+    : db_(db), keep_(keep), spacing_(spacing), mild_(mild),
       orbits_(orbits != nullptr && !orbits->cyclic ? orbits : nullptr),
       classes_(orbits != nullptr && orbits->cyclic ? orbits : nullptr) {
   if (orbits != nullptr && orbits->of.size() != db.model().points.size())
@@ -244,22 +244,32 @@ void Voter::select(std::uint32_t k, bool narrow, std::vector<Correspondence>& ou
     if (cut.top == 0) return;
     lowHistogram(narrow_, cut.top, histogram_);  // the top is under 256: always counted
     cut.limit = outlierLimit(histogram_);
-    if (!(cut.top > cut.limit)) return;  // eq. 11: no upper outlier, no candidate
+    const int keep = cutFor(cut);
+    if (keep == 0) return;  // eq. 11: no upper outlier, no candidate
     bytesAbove(narrow_, static_cast<std::uint8_t>(cut.limit), outliers_);  // v > limit <=> v > floor(limit)
-    keepCandidates(k, cut, [this](std::size_t m) { return std::uint32_t{narrow_[m]}; }, out);
+    keepCandidates(k, cut, keep, [this](std::size_t m) { return std::uint32_t{narrow_[m]}; }, out);
     return;
   }
 #endif
   (void)narrow;
-  const VoteCut cut = upperOutlierCut(votes_, bytes_, histogram_);
-  if (!(cut.top > cut.limit)) return;  // eq. 11: no upper outlier, no candidate (nor any vote)
+  VoteCut cut = upperOutlierCut(votes_, bytes_, histogram_);
+  const int keep = cutFor(cut);
+  if (keep == 0) return;  // eq. 11: no upper outlier, no candidate (nor any vote)
   // Votes are whole: v > limit <=> v > floor(limit).
   votesAbove(std::span<const std::uint16_t>(votes_.data(), counters_), static_cast<std::uint16_t>(cut.limit), outliers_);
-  keepCandidates(k, cut, [this](std::size_t m) { return std::uint32_t{votes_[m]}; }, out);
+  keepCandidates(k, cut, keep, [this](std::size_t m) { return std::uint32_t{votes_[m]}; }, out);
+}
+
+int Voter::cutFor(VoteCut& cut) const {
+  if (cut.top > cut.limit) return keep_;
+  if (mild_.keep <= 0 || cut.top == 0) return 0;
+  const Fourths f = fourthsOfHistogram(histogram_);  // the histogram eq. 11's limit was taken from
+  cut.limit = f.upper + mild_.spreads * f.spread();
+  return cut.top > cut.limit ? std::min(keep_, mild_.keep) : 0;
 }
 
 template <class Value>
-void Voter::keepCandidates(std::uint32_t k, VoteCut cut, Value value, std::vector<Correspondence>& out) {
+void Voter::keepCandidates(std::uint32_t k, VoteCut cut, int keep, Value value, std::vector<Correspondence>& out) {
   const std::uint16_t top = cut.top;
   const auto above = static_cast<std::uint16_t>(cut.limit);
   // A body of revolution's accumulator is over its orbits: each one's first point stands for it.
@@ -267,8 +277,8 @@ void Voter::keepCandidates(std::uint32_t k, VoteCut cut, Value value, std::vecto
   const auto model_point = [this](std::size_t m) {
     return static_cast<std::uint32_t>(orbits_ != nullptr ? orbits_->member[m] : classes_ != nullptr ? classes_->member[classes_->of[m]] : m);
   };
-  if (keep_ <= 1 || spacing_ <= 0) {
-    keepBest(outliers_, keep_, value);
+  if (keep <= 1 || spacing_ <= 0) {
+    keepBest(outliers_, keep, value);
     for (const std::size_t m : outliers_) out.push_back({k, model_point(m)});
     return;
   }
@@ -281,7 +291,7 @@ void Voter::keepCandidates(std::uint32_t k, VoteCut cut, Value value, std::vecto
   };
   const std::size_t first = out.size();
   const auto better = moreVotes(value);
-  const std::size_t batch = 4 * static_cast<std::size_t>(keep_);
+  const std::size_t batch = 4 * static_cast<std::size_t>(keep);
   // Votes are whole and lie in (above, top]: when that range is short, sortByCell's counting
   // sort over top - votes (most first; outliers_ holds ascending indices, and the sort keeps
   // their order) gives moreVotes's order at once, where partial_sort's comparisons took a fifth
@@ -308,7 +318,7 @@ void Voter::keepCandidates(std::uint32_t k, VoteCut cut, Value value, std::vecto
     for (std::size_t c = first; c < out.size() && !near; ++c) near = (where(out[c].model) - m).squaredNorm() < spacing_ * spacing_;
     if (near) continue;
     out.push_back({k, model_point(outliers_[r])});
-    if (out.size() - first >= static_cast<std::size_t>(keep_)) break;
+    if (out.size() - first >= static_cast<std::size_t>(keep)) break;
   }
 }
 
@@ -318,8 +328,8 @@ void Voter::vote(const Points& points, const Points& normals, std::span<const st
   for (const std::uint32_t k : group) votePoint(points, normals, k, group, out);
 }
 
-ParallelVoter::ParallelVoter(const ModelDatabase& db, int keep, float spacing, const Orbits* orbits)
-    : voters_([&db, keep, spacing, orbits] { return Voter(db, keep, spacing, orbits); }) {}
+ParallelVoter::ParallelVoter(const ModelDatabase& db, int keep, float spacing, const Orbits* orbits, MildOutliers mild)
+    : voters_([&db, keep, spacing, orbits, mild] { return Voter(db, keep, spacing, orbits, mild); }) {}
 
 void ParallelVoter::vote(const Points& points, const Points& normals, std::span<const std::uint32_t> group,
                          std::vector<Correspondence>& out) {
@@ -345,7 +355,7 @@ struct NeighbourhoodVoter::Local {
 
 NeighbourhoodVoter::NeighbourhoodVoter(const ModelDatabase& db, const Points& points, const Points& normals, float radius,
                                        int keep, std::span<const std::uint32_t> partners, float spacing,
-                                       const Orbits* orbits)
+                                       const Orbits* orbits, MildOutliers mild)
     : points_(points), normals_(normals), radius_(radius), voted_(points.size(), 0), candidates_(points.size()) {
   if (partners.empty()) {
     partners_.resize(points.size());
@@ -356,7 +366,7 @@ NeighbourhoodVoter::NeighbourhoodVoter(const ModelDatabase& db, const Points& po
   for (const auto o : partners_) partner_points_.push_back(points[o]);
   grid_ = std::make_unique<PointGrid>(partner_points_, 0.5f * radius);
   // Each thread's copy of this one (its own accumulator and buffers).
-  locals_ = std::make_unique<tbb::enumerable_thread_specific<Local>>(Local{Voter(db, keep, spacing, orbits), {}, {}, {}});
+  locals_ = std::make_unique<tbb::enumerable_thread_specific<Local>>(Local{Voter(db, keep, spacing, orbits, mild), {}, {}, {}});
 }
 
 NeighbourhoodVoter::~NeighbourhoodVoter() = default;

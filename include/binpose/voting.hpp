@@ -55,6 +55,17 @@ VoteCut upperOutlierCut(std::span<const std::uint16_t> votes, std::vector<std::u
 /// maximum (ties at the cut by index), for parts whose symmetric points share their votes.
 std::vector<std::size_t> selectCandidates(std::span<const std::uint32_t> values, int keep = 1);
 
+/// Beyond the thesis: the candidates of a scene point whose votes hold no upper outlier (eq. 11:
+/// none above x_u + 3 xi_s). On a large or smooth part every model point takes votes from a
+/// point's many features, the counts spread wide, and the right model point is often among the
+/// few most voted without standing 3 fourth-spreads clear; eq. 11 leaves such a point without
+/// any candidate. With `keep` > 0 it keeps its `keep` most voted (at most the voter's keep)
+/// above x_u + `spreads` xi_s instead. keep 0: none (the thesis).
+struct MildOutliers {
+  float spreads = 2.0f;
+  int keep = 0;
+};
+
 /// Votes for the model points of every point of a sub-group (eq. 8-12). Holds the accumulator
 /// between calls so nothing is allocated per scene point; one Voter per thread.
 class Voter {
@@ -65,7 +76,9 @@ class Voter {
   /// `orbits` (a body of revolution; symmetry.hpp): votes go to orbits, by their lists, and each
   /// candidate orbit is given as its first model point (spacing then between orbits, in the
   /// axis's half-plane). It must outlive the voter.
-  explicit Voter(const ModelDatabase& db, int keep = 1, float spacing = 0.0f, const Orbits* orbits = nullptr);
+  /// `mild`: a point without an upper outlier keeps its mild outliers (MildOutliers).
+  explicit Voter(const ModelDatabase& db, int keep = 1, float spacing = 0.0f, const Orbits* orbits = nullptr,
+                 MildOutliers mild = {});
   /// Appends to `out` the candidate pairs of each point of `group` (indices into points/normals),
   /// each point voting with the whole group (the thesis's sub-group voting).
   void vote(const Points& points, const Points& normals, std::span<const std::uint32_t> group,
@@ -87,13 +100,17 @@ class Voter {
   /// votes_, or narrow_ (`narrow`).
   void select(std::uint32_t k, bool narrow, std::vector<Correspondence>& out);
   /// select's rest, once outliers_ holds the upper outliers (ascending) of counts value(m) cut
-  /// by `cut`: the best, spread by spacing_ (eq. 12).
+  /// by `cut`: the `keep` best, spread by spacing_ (eq. 12).
   template <class Value>
-  void keepCandidates(std::uint32_t k, VoteCut cut, Value value, std::vector<Correspondence>& out);
+  void keepCandidates(std::uint32_t k, VoteCut cut, int keep, Value value, std::vector<Correspondence>& out);
+  /// The candidates kept at `cut` (eq. 11's limit set): keep_, or with no count above it and
+  /// mild outliers on, the limit lowered to mild_.spreads and mild_.keep of them; 0: none.
+  int cutFor(VoteCut& cut) const;
 
   const ModelDatabase& db_;
   int keep_;
   float spacing_;
+  MildOutliers mild_;
   std::vector<std::uint32_t> keys_;       ///< the keys of one point's features
   struct Distinct {
     std::uint32_t key, count, slot;  ///< a key, how many of the features have it, its slot in slots_
@@ -128,7 +145,8 @@ class Voter {
 /// order whatever the thread count.
 class ParallelVoter {
  public:
-  explicit ParallelVoter(const ModelDatabase& db, int keep = 1, float spacing = 0.0f, const Orbits* orbits = nullptr);
+  explicit ParallelVoter(const ModelDatabase& db, int keep = 1, float spacing = 0.0f, const Orbits* orbits = nullptr,
+                         MildOutliers mild = {});
   void vote(const Points& points, const Points& normals, std::span<const std::uint32_t> group,
             std::vector<Correspondence>& out);
 
@@ -145,10 +163,10 @@ class ParallelVoter {
 class NeighbourhoodVoter {
  public:
   /// Only the points listed in `partners` are paired with the voters (all when empty). The
-  /// points and normals must outlive the voter. `spacing`, `orbits`: as Voter's.
+  /// points and normals must outlive the voter. `spacing`, `orbits`, `mild`: as Voter's.
   NeighbourhoodVoter(const ModelDatabase& db, const Points& points, const Points& normals, float radius, int keep,
                      std::span<const std::uint32_t> partners = {}, float spacing = 0.0f,
-                     const Orbits* orbits = nullptr);
+                     const Orbits* orbits = nullptr, MildOutliers mild = {});
   ~NeighbourhoodVoter();
   NeighbourhoodVoter(const NeighbourhoodVoter&) = delete;
   NeighbourhoodVoter& operator=(const NeighbourhoodVoter&) = delete;
