@@ -64,6 +64,9 @@ int main(int argc, char** argv) {
   p = stages(defaultPreset());
   p.retry_all_voters = false;
   variants.push_back({"default without the second pass", p});
+  p = stages(defaultPreset());
+  p.mild_outlier_candidates = 0;
+  variants.push_back({"default, eq. 11's upper outliers alone", p});
 
   std::printf("model %s, %.1f mm; %d scenes x %d copies\n", argv[1], model.diameter, scenes, copies);
   std::printf("%-40s %7s %6s %9s %9s %9s\n", "variant", "recall", "false", "cent mm", "angle deg", "ms/scene");
