@@ -603,6 +603,55 @@ TEST(Voting, VoterSelectsTheUpperOutliersOfItsCounts) {
   }
 }
 
+TEST(Voting, APointWithoutAnUpperOutlierKeepsItsMostVotedMildOnes) {
+  // Johnson's fourths of each point's non-zero counts, computed here: a point whose top count is
+  // no upper outlier (eq. 11) has no candidate under eq. 11 alone, and with MildOutliers{2, 4}
+  // its (at most) 4 most voted above x_u + 2 xi_s; a point with an upper outlier keeps eq. 11's.
+  // The normals tilted by about 6 degrees, as a noisy scan's, spread the votes.
+  WholePart part = wholePart(17);
+  Rng rng(5);
+  for (Vec3& n : part.normals) n = (n + 0.1f * Vec3(rng.gaussian(), rng.gaussian(), rng.gaussian())).normalized();
+  const auto& [points, normals, group] = part;
+  const ModelDatabase& db = lDatabase();
+  Voter upper(db, 12), mild(db, 12, 0.0f, nullptr, MildOutliers{2.0f, 4});
+  int without_outlier = 0, with_mild = 0;
+  for (std::uint32_t k = 0; k < points.size(); k += 3) {
+    const std::vector<std::uint32_t> counts = countedVotes(db, part, k);
+    std::vector<std::uint32_t> values;
+    for (const std::uint32_t c : counts)
+      if (c > 0) values.push_back(c);
+    std::sort(values.begin(), values.end());
+    const std::size_t n = values.size(), half = (n + 1) / 2;
+    const auto median = [&](std::size_t from, std::size_t count) {
+      return count % 2 ? double(values[from + count / 2]) : 0.5 * (values[from + count / 2 - 1] + values[from + count / 2]);
+    };
+    const double lower = median(0, half), higher = median(n - half, half), spread = higher - lower;
+    std::vector<Correspondence> by_upper, by_mild;
+    upper.votePoint(points, normals, k, group, by_upper);
+    mild.votePoint(points, normals, k, group, by_mild);
+    if (values.back() > higher + 3 * spread) {
+      EXPECT_EQ(by_mild, by_upper) << k;
+      continue;
+    }
+    ++without_outlier;
+    EXPECT_TRUE(by_upper.empty()) << k;
+    const double limit = higher + 2 * spread;
+    const auto above = static_cast<std::size_t>(std::count_if(values.begin(), values.end(), [&](std::uint32_t v) { return v > limit; }));
+    ASSERT_EQ(by_mild.size(), std::min<std::size_t>(4, above)) << k;
+    with_mild += !by_mild.empty();
+    std::uint32_t least_kept = UINT32_MAX;
+    for (const Correspondence& c : by_mild) {
+      EXPECT_GT(counts[c.model], limit) << k;
+      least_kept = std::min(least_kept, counts[c.model]);
+    }
+    for (std::uint32_t m = 0; m < counts.size(); ++m)  // none left out with more votes than one kept
+      if (std::none_of(by_mild.begin(), by_mild.end(), [&](const Correspondence& c) { return c.model == m; }))
+        EXPECT_LE(counts[m], least_kept) << k;
+  }
+  std::printf("%d points without an upper outlier, %d of them with mild ones\n", without_outlier, with_mild);
+  EXPECT_GT(with_mild, 5);
+}
+
 TEST(Voting, CandidateSpacingKeepsTheBestAndSpreadsTheRest) {
   const auto [points, normals, group] = wholePart(9);
   constexpr float kSpacing = 5.0f;
