@@ -52,11 +52,14 @@ Fourths fourthsOfHistogram(std::span<const std::uint32_t> histogram) {
 
 namespace {
 
-/// Eq. 10-11 on the histogram of a data set (histogram[v]: how many hold v): the value above
-/// which one is an upper outlier, x_u + 3 xi_s.
-double outlierLimit(std::span<const std::uint32_t> histogram) {
-  const Fourths f = fourthsOfHistogram(histogram);
-  return f.upper + 3.0 * f.spread();  // eq. 11
+/// Eq. 11: the value above which one of a data set with fourths `f` is an upper outlier,
+/// x_u + 3 xi_s.
+double outlierLimit(const Fourths& f) { return f.upper + 3.0 * f.spread(); }
+
+/// Eq. 10-11 on the histogram of an accumulator's non-zero counts into `cut`.
+void cutAt(std::span<const std::uint32_t> histogram, VoteCut& cut) {
+  cut.fourths = fourthsOfHistogram(histogram);
+  cut.limit = outlierLimit(cut.fourths);
 }
 
 }  // namespace
@@ -68,7 +71,7 @@ void upperOutliers(std::span<const std::uint32_t> values, std::vector<std::uint3
   const std::uint32_t top = *std::max_element(values.begin(), values.end());
   histogram.assign(std::size_t{top} + 1, 0);
   for (const auto v : values) ++histogram[v];
-  const double limit = outlierLimit(histogram);
+  const double limit = outlierLimit(fourthsOfHistogram(histogram));
   if (!(top > limit)) return;  // eq. 11: no upper outlier, no candidate
   for (std::size_t i = 0; i < values.size(); ++i)
     if (values[i] > limit) out.push_back(i);
@@ -130,7 +133,7 @@ VoteCut upperOutlierCut(std::span<const std::uint16_t> votes, std::vector<std::u
 #endif
   if (cut.top == 0) return cut;
   if (!counted) fullHistogram(votes, cut.top, histogram);
-  cut.limit = outlierLimit(histogram);
+  cutAt(histogram, cut);
   return cut;
 }
 
@@ -243,7 +246,7 @@ void Voter::select(std::uint32_t k, bool narrow, std::vector<Correspondence>& ou
     cut.top = largestByte(narrow_);
     if (cut.top == 0) return;
     lowHistogram(narrow_, cut.top, histogram_);  // the top is under 256: always counted
-    cut.limit = outlierLimit(histogram_);
+    cutAt(histogram_, cut);
     const int keep = cutFor(cut);
     if (keep == 0) return;  // eq. 11: no upper outlier, no candidate
     bytesAbove(narrow_, static_cast<std::uint8_t>(cut.limit), outliers_);  // v > limit <=> v > floor(limit)
@@ -263,8 +266,7 @@ void Voter::select(std::uint32_t k, bool narrow, std::vector<Correspondence>& ou
 int Voter::cutFor(VoteCut& cut) const {
   if (cut.top > cut.limit) return keep_;
   if (mild_.keep <= 0 || cut.top == 0) return 0;
-  const Fourths f = fourthsOfHistogram(histogram_);  // the histogram eq. 11's limit was taken from
-  cut.limit = f.upper + mild_.spreads * f.spread();
+  cut.limit = cut.fourths.upper + mild_.spreads * cut.fourths.spread();
   return cut.top > cut.limit ? std::min(keep_, mild_.keep) : 0;
 }
 

@@ -42,6 +42,7 @@ void upperOutliers(std::span<const std::uint32_t> values, std::vector<std::uint3
 struct VoteCut {
   std::uint16_t top = 0;
   double limit = 0;
+  Fourths fourths;  ///< of the non-zero counts (eq. 10; unset with the limit)
 };
 /// VoteCut of 16-bit counts (the zeros are not part of the data set). `bytes` and `histogram`
 /// are scratch, kept by the caller so nothing is allocated per call. The same for any count;
