@@ -77,7 +77,7 @@ GroupSchedule::GroupSchedule(const ModelDatabase& db, const StageSettings& p, co
       state_(state),
       threads_(workerThreads()),
       parallel_(db, matcher.symmetry.candidatesPerPoint(p), p.candidate_spacing, matcher.symmetry.votingOrbits(),
-                PartSymmetry::mildOutliers(p)),
+                mildOutliers(p)),
       largest_clique_(groups.size(), 0) {
   const std::size_t batch = kGroupsPerThread * std::max<std::size_t>(1, threads_);
   for (std::size_t k = 0; k < batch; ++k) slots_.emplace_back(db, p, matcher.symmetry);

@@ -14,8 +14,7 @@ LocalVotes makeLocalVotes(const ModelDatabase& db, const PreparedScene& scene, c
   if (p.partner_spacing > 0) partners = voxelSubsample(scene.points, p.partner_spacing);
   out.voter =
       std::make_unique<NeighbourhoodVoter>(db, scene.points, scene.normals, p.vote_radius, symmetry.candidatesPerPoint(p),
-                                           partners, p.candidate_spacing, symmetry.votingOrbits(),
-                                           PartSymmetry::mildOutliers(p));
+                                           partners, p.candidate_spacing, symmetry.votingOrbits(), mildOutliers(p));
   out.may_vote.assign(scene.points.size(), p.voter_spacing > 0 ? 0 : 1);
   if (p.voter_spacing > 0)
     for (const auto i : voxelSubsample(scene.points, p.voter_spacing)) out.may_vote[i] = 1;

@@ -57,10 +57,6 @@ class PartSymmetry {
   [[nodiscard]] const CyclicSymmetry* cyclic() const { return cyclic_ ? &*cyclic_ : nullptr; }
   /// Candidates kept per scene point: a symmetric part's votes do not spread over its images.
   [[nodiscard]] int candidatesPerPoint(const StageSettings& p) const;
-  /// The candidates of a point without an upper outlier (StageSettings::mild_outlier_candidates).
-  [[nodiscard]] static MildOutliers mildOutliers(const StageSettings& p) {
-    return {p.mild_outlier_spreads, p.mild_outlier_candidates};
-  }
   /// The consistency graph of 4.5 (eq. 13-16), or its symmetric form.
   [[nodiscard]] Graph consistencyGraph(std::span<const Correspondence> cps, const Points& scene, const Points& scene_normals,
                                        const OrientedModel& model, const StageSettings& p, GraphWorkspace& workspace) const;

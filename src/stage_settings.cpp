@@ -2,6 +2,7 @@
 #include "stage_settings.hpp"
 
 #include <binpose/model.hpp>
+#include <binpose/voting.hpp>
 
 #include <cmath>
 #include <fmt/format.h>
@@ -78,6 +79,8 @@ StageSettings stageSettings(const DetectionParams& params, float model_diameter)
   s.normal_max_radius *= k;
   return s;
 }
+
+MildOutliers mildOutliers(const StageSettings& s) { return {s.mild_outlier_spreads, s.mild_outlier_candidates}; }
 
 PlaneParams planeParams(const StageSettings& s) {
   PlaneParams planes;

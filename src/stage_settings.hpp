@@ -11,6 +11,8 @@
 
 namespace binpose {
 
+struct MildOutliers;  // voting.hpp
+
 struct StageSettings : DetectionParams {
   // --- scene preparation (5.2.1-5.2.2) ------------------------------------------------------
   Subsampling subsampling = Subsampling::Voxel;
@@ -173,6 +175,10 @@ StageSettings stageSettings(const DetectionParams& params, float model_diameter)
 /// The plane search for these settings: their plane_min_area, plane_tolerance and seed,
 /// patches linked over 2.5 sample spacings (1 / sqrt(rho_sub)).
 PlaneParams planeParams(const StageSettings& s);
+
+/// The voters' candidates of a point without an upper outlier: mild_outlier_spreads and
+/// mild_outlier_candidates.
+MildOutliers mildOutliers(const StageSettings& s);
 
 /// validate() of the user's values, then of the internal ones (tests and benchmarks set them).
 void validateStages(const StageSettings& s);

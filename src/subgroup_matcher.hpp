@@ -60,7 +60,7 @@ struct GroupOutcome {
 /// The buffers and the outcome of one place in a batch (the outcome is kept until it is taken).
 struct Slot {
   Slot(const ModelDatabase& db, const StageSettings& p, const PartSymmetry& symmetry)
-      : voter(db, symmetry.candidatesPerPoint(p), p.candidate_spacing, symmetry.votingOrbits(), PartSymmetry::mildOutliers(p)) {}
+      : voter(db, symmetry.candidatesPerPoint(p), p.candidate_spacing, symmetry.votingOrbits(), mildOutliers(p)) {}
   Voter voter;
   std::vector<Correspondence> candidates;
   std::vector<Correspondence> clique;  ///< the clique being fitted
