@@ -430,16 +430,19 @@ TEST(RealSensors, CapsSeenDownTheirAxisAreSlidIntoPlace) {
   EXPECT_LT(median_after, 0.8f * median_before);
 }
 
-/// The detections lying on a copy of `b` (MSSD under 10 mm) and those lying on none.
-std::pair<int, int> rightAndOff(const DetectionResult& result, const IpdBin& b, const EvalModel& eval) {
+/// The detections lying on a copy in `bin` (MSSD under 10 mm) and those lying on none.
+std::pair<int, int> rightAndOff(const DetectionResult& result, const SimulatedScene& bin, const EvalModel& eval) {
   int right = 0, off = 0;
   for (const Detection& d : result.detections) {
-    const bool on_copy = std::any_of(b.bin.instances.begin(), b.bin.instances.end(), [&](const SimulatedInstance& copy) {
+    const bool on_copy = std::any_of(bin.instances.begin(), bin.instances.end(), [&](const SimulatedInstance& copy) {
       return poseErrors(d.pose, copy.pose, eval).mssd_mm < 10.0f;
     });
     (on_copy ? right : off) += 1;
   }
   return {right, off};
+}
+std::pair<int, int> rightAndOff(const DetectionResult& result, const IpdBin& b, const EvalModel& eval) {
+  return rightAndOff(result, b.bin, eval);
 }
 
 // reseat_weak: on a time-of-flight scan (3 mm of noise and more per pixel at 800 mm) ICP leaves
@@ -569,16 +572,9 @@ TEST(RealSensors, MildOutliersFindASmoothPartOnTimeOfFlight) {
     sp.sensor = sensorAt800(SensorKind::TimeOfFlight);
     sp.sensor.distance = 900.0f;
     const SimulatedScene bin = simulateBin(mesh, sp);
-    const auto count = [&](const DetectionResult& result, int& right, int& off) {
-      for (const Detection& d : result.detections) {
-        const bool on_copy = std::any_of(bin.instances.begin(), bin.instances.end(), [&](const SimulatedInstance& copy) {
-          return poseErrors(d.pose, copy.pose, eval).mssd_mm < 10.0f;
-        });
-        (on_copy ? right : off) += 1;
-      }
-    };
-    count(Detector(db, upper).detect(bin.cloud), right_upper, off_upper);
-    count(Detector(db, mild).detect(bin.cloud), right_mild, off_mild);
+    const auto [r_upper, o_upper] = rightAndOff(Detector(db, upper).detect(bin.cloud), bin, eval);
+    const auto [r_mild, o_mild] = rightAndOff(Detector(db, mild).detect(bin.cloud), bin, eval);
+    right_upper += r_upper, off_upper += o_upper, right_mild += r_mild, off_mild += o_mild;
   }
   std::printf("upper outliers: %d right, %d off; and mild ones: %d right, %d off\n", right_upper, off_upper, right_mild, off_mild);
   EXPECT_GE(right_mild, right_upper + 6);
