@@ -358,7 +358,10 @@ Laid finer(const Matcher& m, const PreparedModel& judged, const PlaneFit& plane,
 }
 
 /// The laid poses of the faces on `region`: each face's best kShortlist judged again on
-/// `judged`, best first; empty when no face fits the region.
+/// `judged`, best first; empty when no face fits the region. A pose whose body lies inside the
+/// bin's floor or a wall (Matcher::sunk) is none: a bracket lying on the floor by one plate fits
+/// that plate's outer face as well as its inner one, and the outer one, its other plate then
+/// thrust into the floor, would take the region and be ruled out with it.
 std::vector<Laid> shortlist(const Matcher& m, const PreparedModel& coarse, const PreparedModel& judged,
                             const std::vector<ModelFace>& faces, const FlatRegion& region) {
   const auto better = [](const Laid& a, const Laid& b) { return a.support > b.support; };
@@ -367,7 +370,8 @@ std::vector<Laid> shortlist(const Matcher& m, const PreparedModel& coarse, const
     std::vector<Laid> laid = coarseLaid(m, coarse, face, region);
     std::stable_sort(laid.begin(), laid.end(), better);  // ties in the order laid
     laid.resize(std::min(laid.size(), kShortlist));
-    for (Laid& l : laid) kept.push_back({l.pose, support(m, judged, l.pose)});
+    for (Laid& l : laid)
+      if (!m.sunk(l.pose)) kept.push_back({l.pose, support(m, judged, l.pose)});
   }
   std::stable_sort(kept.begin(), kept.end(), better);
   return kept;
