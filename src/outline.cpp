@@ -7,7 +7,10 @@
 // drops to what lies behind the part or meets what lies in front of it; at such a wrong pose the
 // scan goes on along the part's own surface. The test extrapolates the part's tangent plane at
 // each outline cell two cells outwards and asks whether the scan lies on it there, or clearly
-// behind it (the part stands out of what lies behind it).
+// behind it (the part stands out of what lies behind it). For a pose laid on one face, a
+// background plane there (the bin's floor) that the part stands clear of counts as behind it,
+// however thin the part: a plate of 3 mm sheet lying on the floor has the floor within the band
+// of its face's plane.
 #include <binpose/refine.hpp>
 
 #include "facing_points.hpp"
@@ -79,7 +82,7 @@ Silhouette silhouetteOf(const std::vector<Facing>& seen, float size) {
 }  // namespace
 
 OutlineEvidence SceneEvidence::outline(const Pose& pose, const PreparedModel& model, float tolerance,
-                                       float model_spacing) const {
+                                       float model_spacing, bool on_bin) const {
   OutlineEvidence out;
   const std::vector<Facing> seen = facingPoints(pose, model, to_view_, viewpoint_, cos_grazing_);
   if (width_ == 0 || seen.empty() || !(model_spacing > 0)) return out;
@@ -110,13 +113,25 @@ OutlineEvidence SceneEvidence::outline(const Pose& pose, const PreparedModel& mo
         if (!(-cosine >= kMinCosine)) continue;
         const float range = f.n.dot(f.p - viewpoint_) / cosine;
         ++out.judged;
-        const float past = nearest_[static_cast<std::size_t>(beyond)] - range;  // > 0: the scan lies behind
+        const float seen = nearest_[static_cast<std::size_t>(beyond)];
+        const float past = seen - range;  // > 0: the scan lies behind
         const float band = kBandTolerances * tolerance;
-        out.continued += std::abs(past) <= band;
-        out.dropped += past > band;
+        // A thin part lying on the floor has the floor beyond its edge within the band: the bin
+        // it stands on, not its own surface going on.
+        const bool continued = std::abs(past) <= band && !(on_bin && standsOnBackground(f.p, viewpoint_ + seen * ray));
+        out.continued += continued;
+        out.dropped += past > band || (std::abs(past) <= band && !continued);
       }
     }
   return out;
+}
+
+bool SceneEvidence::standsOnBackground(const Vec3& part, const Vec3& beyond) const {
+  return std::any_of(background_.begin(), background_.end(), [&](const Plane& b) {
+    const float side = b.side(part);
+    return b.distance(beyond) <= background_tolerance_ && std::abs(side) > background_tolerance_ &&
+           side * b.side(viewpoint_) > 0 && b.covers(beyond);
+  });
 }
 
 }  // namespace binpose

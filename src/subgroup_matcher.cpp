@@ -217,7 +217,7 @@ bool Matcher::outlineStandsOut(const Pose& pose, const std::optional<Plane>& fac
   // against 0.25 on scans of other objects.
   constexpr float kLaidMinDrop = 0.4f;
   if (!laid && p.max_outline_share >= 1.0f && p.min_outline_drop <= 0.0f) return true;
-  const OutlineEvidence o = evidence.outline(pose, scored_model, p.verify_tolerance, db.model().sample_radius);
+  const OutlineEvidence o = evidence.outline(pose, scored_model, p.verify_tolerance, db.model().sample_radius, laid);
   if (laid && !(o.judged >= kMinJudged && o.droppedShare() >= kLaidMinDrop)) return false;
   const float most = face ? p.max_outline_share : std::max(p.max_outline_share, p.many_faces_outline_share);
   if (o.judged >= kMinJudged && o.share() > most) return false;  // a face laid on a larger surface

@@ -2,6 +2,7 @@
 #include <binpose/model.hpp>
 #include <binpose/refine.hpp>
 #include <binpose/pixel_neighbours.hpp>
+#include <binpose/planes.hpp>
 #include <binpose/shapes.hpp>
 #include <binpose/simulation.hpp>
 
@@ -270,6 +271,54 @@ TEST(Evidence, OutlineTellsAFaceLaidOnALargerSurface) {
   EXPECT_EQ(floor_outline.dropped, floor_outline.judged);
   EXPECT_GT(plate_outline.droppedShare(), 0.5f);
   EXPECT_LT(plate_outline.droppedShare(), 0.9f);
+}
+
+// A plate of 3 mm sheet lying on the floor: past its outline the floor lies 3 mm behind its face,
+// within the outline's band (two tolerances of 2 mm), as the surface of a larger plate would. For
+// a pose laid on one face (`on_bin`) the floor, a background plane that the plate stands clear
+// of, counts as dropped: the bin it lies on. A plate flush with the floor (its face in it) is not
+// clear of it, and its outline still continues.
+TEST(Evidence, OutlineOfAThinPlateOnTheFloorDropsToTheBin) {
+  const OrientedModel plate = prepareModel(makeBox(Vec3(60, 40, 3), 4), ModelParams{});  // centred
+  const PreparedModel model(plate.points, plate.normals);
+  Points scan;
+  std::vector<std::uint32_t> floor;  // the plane z = 500 mm seen from the origin, but for the plate
+  for (float x = -99.75f; x < 100; x += 0.5f)
+    for (float y = -59.75f; y < 60; y += 0.5f) {
+      if (std::abs(x) <= 30 && std::abs(y) <= 20) {
+        scan.emplace_back(x, y, 497.0f);  // the plate's face
+        continue;
+      }
+      floor.push_back(static_cast<std::uint32_t>(scan.size()));
+      scan.emplace_back(x, y, 500.0f);
+    }
+  Plane plane{-Vec3::UnitZ(), -500.0f, {}};  // its normal towards the sensor
+  plane.extent = std::make_shared<const PlaneFootprint>(scan, floor, plane, 3.0f, plate.diameter);
+  const PointGrid grid(scan);
+  SceneEvidence evidence(scan, grid, Vec3::Zero());
+  evidence.setBackground({plane}, 1.0f);
+  Pose lying = Pose::Identity();
+  lying.translation() = Vec3(0, 0, 498.5f);
+  const OutlineEvidence judged = evidence.outline(lying, model, 2.0f, plate.sample_radius);
+  const OutlineEvidence on_bin = evidence.outline(lying, model, 2.0f, plate.sample_radius, true);
+  EXPECT_GT(judged.judged, 30);
+  EXPECT_GT(judged.share(), 0.9f);
+  EXPECT_EQ(on_bin.judged, judged.judged);
+  EXPECT_LT(on_bin.share(), 0.05f);  // 3 of 116 steps here
+  EXPECT_GT(on_bin.droppedShare(), 0.95f);
+  EXPECT_EQ(on_bin.continued + on_bin.dropped, on_bin.judged);
+
+  Points flat;  // the floor alone, and the plate's face laid in it
+  for (float x = -99.75f; x < 100; x += 0.5f)
+    for (float y = -59.75f; y < 60; y += 0.5f) flat.emplace_back(x, y, 500.0f);
+  const PointGrid flat_grid(flat);
+  SceneEvidence floor_only(flat, flat_grid, Vec3::Zero());
+  floor_only.setBackground({plane}, 1.0f);
+  Pose flush = lying;
+  flush.translation().z() = 501.5f;
+  const OutlineEvidence in_floor = floor_only.outline(flush, model, 2.0f, plate.sample_radius, true);
+  EXPECT_GT(in_floor.judged, 30);
+  EXPECT_GT(in_floor.share(), 0.9f);
 }
 
 // A box standing beside the line of sight, as a sensor sees it: its near face only, and the

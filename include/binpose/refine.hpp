@@ -151,10 +151,11 @@ struct Sinking {
 struct OutlineEvidence {
   int judged = 0;     ///< outline steps with a visible part edge and a scan surface beyond it
   /// ... where that surface lies on the part's tangent plane, continued (within two tolerances:
-  /// the plane is extrapolated, and both it and the scan are noisy)
+  /// the plane is extrapolated, and both it and the scan are noisy), but a background plane there
+  /// (outline's `on_bin`)
   int continued = 0;
-  /// ... where it lies clearly behind that plane (farther than two tolerances): the part stands
-  /// out of what lies behind it there.
+  /// ... where it lies clearly behind that plane (farther than two tolerances), or (`on_bin`) on
+  /// a background plane that the part stands clear of: the part stands out of what lies behind it.
   int dropped = 0;
   /// continued / judged (0 when none is judged).
   [[nodiscard]] float share() const { return judged == 0 ? 0.0f : static_cast<float>(continued) / static_cast<float>(judged); }
@@ -222,9 +223,11 @@ class SceneEvidence {
   /// The scan beyond the posed model's outline (OutlineEvidence; src/outline.cpp): a wrong pose
   /// that lays one face of the part on a larger surface of the scan (the top of another part,
   /// the floor) is supported wherever it lies, but the surface goes on past its edges.
-  /// `model_spacing` (> 0): the model's sample spacing, mm.
+  /// `model_spacing` (> 0): the model's sample spacing, mm. `on_bin`: a pose laid on one face
+  /// (face_hypotheses.hpp), which may be a thin part lying on the bin: a background plane beyond
+  /// its edge that it stands clear of counts as dropped, however near its face's plane.
   [[nodiscard]] OutlineEvidence outline(const Pose& pose, const PreparedModel& model, float tolerance,
-                                        float model_spacing) const;
+                                        float model_spacing, bool on_bin = false) const;
 
  private:
   /// Range-image cell of the direction (u, v) (x / z and y / z in the image frame), or -1
@@ -233,6 +236,9 @@ class SceneEvidence {
   /// Whether model point p (at `range` from the viewpoint) lies clearly behind a background
   /// plane that the scan shows where the line of sight crosses it (`seen_range`: the scan's
   /// nearest range in p's direction): inside the floor or a wall, where no part can be.
+  /// Whether `beyond` (a scan point) lies on a background plane that `part` (a model point)
+  /// stands clear of, on the sensor's side: the bin seen past the edge of a part lying on it.
+  [[nodiscard]] bool standsOnBackground(const Vec3& part, const Vec3& beyond) const;
   [[nodiscard]] bool insideBackground(const Vec3& p, float range, float seen_range, float tolerance) const;
 
   const Points& scan_;
