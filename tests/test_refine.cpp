@@ -32,6 +32,26 @@ Pose refine(const Case& c, const Pose& start) {
   return refinePose(start, c.model.points, c.model.normals, c.scan.points, grid, IcpParams{});
 }
 
+/// The floor z = 500 mm seen from the origin, a point every `step` mm over |x|, |y| <= `half`,
+/// but where a 60 x 40 mm face at depth `face_z` hides it (|x| <= 30, |y| <= 20): the scan, and
+/// the floor as a background plane whose extent is its points (holes up to `hole` mm).
+struct FloorAround {
+  Points scan;
+  Plane plane{-Vec3::UnitZ(), -500.0f, {}};  // its normal towards the sensor
+};
+FloorAround floorAround(float face_z, float half, float step, float hole) {
+  FloorAround f;
+  std::vector<std::uint32_t> floor;
+  for (float x = -half; x <= half; x += step)
+    for (float y = -half; y <= half; y += step) {
+      const bool face = std::abs(x) <= 30 && std::abs(y) <= 20;
+      if (!face) floor.push_back(static_cast<std::uint32_t>(f.scan.size()));
+      f.scan.emplace_back(x, y, face ? face_z : 500.0f);
+    }
+  f.plane.extent = std::make_shared<const PlaneFootprint>(f.scan, floor, f.plane, 3.0f, hole);
+  return f;
+}
+
 /// `pose` moved by `t` (mm) and turned by `angle` (rad) about `axis` through the part's origin.
 Pose perturbed(const Pose& pose, const Vec3& t, float angle, const Vec3& axis) {
   Pose p = pose;
@@ -138,19 +158,7 @@ TEST(Evidence, ASparseScanSupportsARightPoseAlongItsSurface) {
 // but lies inside the floor that the scan shows all around it.
 TEST(Evidence, APoseSunkIntoTheFloorIsToldFromOneLyingOnIt) {
   const OrientedModel box = prepareModel(builtinPart("box"), ModelParams{});  // 60 x 40 x 20, centred
-  Points scan;
-  std::vector<std::uint32_t> floor;  // the plane z = 500 mm, seen from the origin, but for the box
-  for (float x = -150; x <= 150; x += 1)
-    for (float y = -150; y <= 150; y += 1) {
-      if (std::abs(x) <= 30 && std::abs(y) <= 20) {
-        scan.emplace_back(x, y, 480.0f);  // the box's top
-        continue;
-      }
-      floor.push_back(static_cast<std::uint32_t>(scan.size()));
-      scan.emplace_back(x, y, 500.0f);
-    }
-  Plane plane{-Vec3::UnitZ(), -500.0f, {}};  // its normal towards the sensor
-  plane.extent = std::make_shared<const PlaneFootprint>(scan, floor, plane, 3.0f, box.diameter);
+  const auto [scan, plane] = floorAround(480.0f, 150.0f, 1.0f, box.diameter);  // the box's top at 480 mm
   const PointGrid grid(scan);
   SceneEvidence evidence(scan, grid, Vec3::Zero());
   evidence.setBackground({plane}, 1.0f);
@@ -281,19 +289,7 @@ TEST(Evidence, OutlineTellsAFaceLaidOnALargerSurface) {
 TEST(Evidence, OutlineOfAThinPlateOnTheFloorDropsToTheBin) {
   const OrientedModel plate = prepareModel(makeBox(Vec3(60, 40, 3), 4), ModelParams{});  // centred
   const PreparedModel model(plate.points, plate.normals);
-  Points scan;
-  std::vector<std::uint32_t> floor;  // the plane z = 500 mm seen from the origin, but for the plate
-  for (float x = -99.75f; x < 100; x += 0.5f)
-    for (float y = -59.75f; y < 60; y += 0.5f) {
-      if (std::abs(x) <= 30 && std::abs(y) <= 20) {
-        scan.emplace_back(x, y, 497.0f);  // the plate's face
-        continue;
-      }
-      floor.push_back(static_cast<std::uint32_t>(scan.size()));
-      scan.emplace_back(x, y, 500.0f);
-    }
-  Plane plane{-Vec3::UnitZ(), -500.0f, {}};  // its normal towards the sensor
-  plane.extent = std::make_shared<const PlaneFootprint>(scan, floor, plane, 3.0f, plate.diameter);
+  const auto [scan, plane] = floorAround(497.0f, 100.0f, 0.5f, plate.diameter);  // the plate's face at 497 mm
   const PointGrid grid(scan);
   SceneEvidence evidence(scan, grid, Vec3::Zero());
   evidence.setBackground({plane}, 1.0f);
@@ -304,13 +300,11 @@ TEST(Evidence, OutlineOfAThinPlateOnTheFloorDropsToTheBin) {
   EXPECT_GT(judged.judged, 30);
   EXPECT_GT(judged.share(), 0.9f);
   EXPECT_EQ(on_bin.judged, judged.judged);
-  EXPECT_LT(on_bin.share(), 0.05f);  // 3 of 116 steps here
+  EXPECT_LT(on_bin.share(), 0.05f);
   EXPECT_GT(on_bin.droppedShare(), 0.95f);
   EXPECT_EQ(on_bin.continued + on_bin.dropped, on_bin.judged);
 
-  Points flat;  // the floor alone, and the plate's face laid in it
-  for (float x = -99.75f; x < 100; x += 0.5f)
-    for (float y = -59.75f; y < 60; y += 0.5f) flat.emplace_back(x, y, 500.0f);
+  const Points flat = floorAround(500.0f, 100.0f, 0.5f, plate.diameter).scan;  // the floor alone, the plate's face laid in it
   const PointGrid flat_grid(flat);
   SceneEvidence floor_only(flat, flat_grid, Vec3::Zero());
   floor_only.setBackground({plane}, 1.0f);

@@ -233,12 +233,12 @@ class SceneEvidence {
   /// Range-image cell of the direction (u, v) (x / z and y / z in the image frame), or -1
   /// outside the image.
   [[nodiscard]] long cellAt(float u, float v) const;
-  /// Whether model point p (at `range` from the viewpoint) lies clearly behind a background
-  /// plane that the scan shows where the line of sight crosses it (`seen_range`: the scan's
-  /// nearest range in p's direction): inside the floor or a wall, where no part can be.
   /// Whether `beyond` (a scan point) lies on a background plane that `part` (a model point)
   /// stands clear of, on the sensor's side: the bin seen past the edge of a part lying on it.
   [[nodiscard]] bool standsOnBackground(const Vec3& part, const Vec3& beyond) const;
+  /// Whether model point p (at `range` from the viewpoint) lies clearly behind a background
+  /// plane that the scan shows where the line of sight crosses it (`seen_range`: the scan's
+  /// nearest range in p's direction): inside the floor or a wall, where no part can be.
   [[nodiscard]] bool insideBackground(const Vec3& p, float range, float seen_range, float tolerance) const;
 
   const Points& scan_;
