@@ -116,11 +116,12 @@ OutlineEvidence SceneEvidence::outline(const Pose& pose, const PreparedModel& mo
         const float seen = nearest_[static_cast<std::size_t>(beyond)];
         const float past = seen - range;  // > 0: the scan lies behind
         const float band = kBandTolerances * tolerance;
+        const bool within = std::abs(past) <= band;
         // A thin part lying on the floor has the floor beyond its edge within the band: the bin
         // it stands on, not its own surface going on.
-        const bool continued = std::abs(past) <= band && !(on_bin && standsOnBackground(f.p, viewpoint_ + seen * ray));
-        out.continued += continued;
-        out.dropped += past > band || (std::abs(past) <= band && !continued);
+        const bool on_floor = within && on_bin && standsOnBackground(f.p, viewpoint_ + seen * ray);
+        out.continued += within && !on_floor;
+        out.dropped += past > band || on_floor;
       }
     }
   return out;
