@@ -541,6 +541,10 @@ Sinking SceneEvidence::sunkBehind(const Plane& face, const Pose& pose, const Pre
   for (const Facing& f : facing) {
     if (front && front->at(f.u, f.v) < f.range - 2 * model_spacing) continue;  // hidden by the part itself
     ++s.points;
+    // Clearly behind the part's own front, though closer than the self-occlusion margin: the
+    // plane the scan shows in front of it may be the part's own face (a thin-walled cap's inner
+    // wall under its 2 mm top, its outer wall under the rim), which a right pose shows as well.
+    if (front && front->at(f.u, f.v) < f.range - kInsideMargin * tolerance) continue;
     const long c = cellAt(f.u, f.v);
     s.sunk += c >= 0 && std::isfinite(nearest_[c]) && behindSeenPlane(face, viewpoint_, f.p, f.range, nearest_[c], tolerance);
   }

@@ -214,7 +214,9 @@ class SceneEvidence {
   [[nodiscard]] Sinking sinking(const Pose& pose, const PreparedModel& model, float margin, float reach) const;
   /// The posed model's facing points not hidden by the part itself (Sinking::points) that lie
   /// behind `face` where the scan shows that plane in front of them (Sinking::sunk), as
-  /// evaluate() counts a point inside a background plane. `face`: the plane of the scan points
+  /// evaluate() counts a point inside a background plane; those clearly behind the part's own
+  /// front are not counted (the plane in front of them may be the part's own face). `face`: the
+  /// plane of the scan points
   /// that support the pose, when they lie on one. A part cannot lie inside a surface that goes on
   /// from its own face: a pose that lays one face on a patch of a table, its body sunk into it,
   /// which a warped or noisy table (no background plane there) does not give away otherwise.
