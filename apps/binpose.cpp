@@ -108,7 +108,7 @@ int runTrain(const TrainOptions& o) {
 }
 
 struct DetectOptions {
-  std::string model, scene, intrinsics, image_id, out, preset = "default", params_file, render, export_ply;
+  std::string model, scene, intrinsics, image_id, out, preset = "default", params_file, render, export_ply, poses;
   std::string units = "auto", model_units = "auto";
   std::optional<int> max_instances, C_n, k_normals;
   std::optional<float> r, rho_sub, eta, e_gmax, sigma_dist, min_score;
@@ -119,16 +119,12 @@ struct DetectOptions {
   int threads = 0;
 };
 
-void addDetect(CLI::App& app, DetectOptions& o) {
-  CLI::App* d = app.add_subcommand("detect", "Find every instance of a model in a scan (thesis ch. 4-5)");
+/// The options detect and check share: the model, the scan and the parameters.
+void addScanOptions(CLI::App* d, DetectOptions& o) {
   d->add_option("--model", o.model, "Database (.bpdb) or a model to train on the fly (mesh, cloud, builtin:NAME)")->required();
   d->add_option("--scene", o.scene, "Scan: PLY, PCD, or a 16-bit depth PNG (with --intrinsics)")->required();
   d->add_option("--intrinsics", o.intrinsics, "BOP camera.json or scene_camera.json for a depth PNG");
   d->add_option("--image-id", o.image_id, "Entry of scene_camera.json (default: the first)");
-  d->add_option("--out", o.out, "Write the detections as JSON here");
-  d->add_option("--render", o.render, "Draw the scan with the detections, ranked, into this PNG");
-  d->add_option("--export-ply", o.export_ply, "Write the scan and the posed models (coloured) into this PLY");
-  d->add_option("--max-instances", o.max_instances, "Stop after N detections (0: no limit)");
   d->add_option("--preset", o.preset, "Parameter preset: default, or thesis (chapter 5 as written); fast: an alias of default")
       ->check(CLI::IsMember({"default", "fast", "thesis"}))->capture_default_str();
   d->add_option("--params", o.params_file, "JSON file of parameters (absolute units, mm), applied after the preset");
@@ -154,6 +150,23 @@ void addDetect(CLI::App& app, DetectOptions& o) {
   d->add_option("--seed", o.seed, "Seed of the random sub-sampling");
   d->add_option("--threads", o.threads, "Worker threads (0: all cores); the detections are the same whatever the count")
       ->check(CLI::Range(0, 1024))->capture_default_str();
+}
+
+void addDetect(CLI::App& app, DetectOptions& o) {
+  CLI::App* d = app.add_subcommand("detect", "Find every instance of a model in a scan (thesis ch. 4-5)");
+  addScanOptions(d, o);
+  d->add_option("--out", o.out, "Write the detections as JSON here");
+  d->add_option("--render", o.render, "Draw the scan with the detections, ranked, into this PNG");
+  d->add_option("--export-ply", o.export_ply, "Write the scan and the posed models (coloured) into this PLY");
+  d->add_option("--max-instances", o.max_instances, "Stop after N detections (0: no limit)");
+}
+
+void addCheck(CLI::App& app, DetectOptions& o) {
+  CLI::App* c = app.add_subcommand("check", "Judge given poses as detect judges its own: why a part known to lie there is, or is not, found");
+  addScanOptions(c, o);
+  c->add_option("--poses", o.poses, "JSON of poses (model -> scan, mm, 4 x 4 rows): a detect result, a simulated scene's ground_truth.json, or {\"poses\": [...]}")
+      ->required();
+  c->add_option("--out", o.out, "Write each pose's verdict as JSON here");
 }
 
 /// The scan file's viewpoint; for a file that gives none, its origin when that can have seen the
@@ -301,6 +314,104 @@ int runDetect(const DetectOptions& o) {
   if (!o.out.empty()) {
     std::ofstream out(o.out);
     out << resultJson(r, params) << "\n";
+    if (!out) throw binpose::Error(fmt::format("{}: cannot write result", o.out));
+    fmt::print("result: {}\n", o.out);
+  }
+  return 0;
+}
+
+/// One pose of a JSON file, `m` its 4 x 4 (or top 3 x 4) rows: a rigid transform, else an error
+/// naming the file and the pose.
+binpose::Pose poseFromRows(const nlohmann::json& m, const std::string& path, std::size_t index) {
+  const auto bad = [&](const char* what) { return binpose::Error(fmt::format("{}: pose {}: {}", path, index + 1, what)); };
+  if (!m.is_array() || m.size() < 3 || m.size() > 4) throw bad("not 3 or 4 rows of 4 numbers");
+  binpose::Pose pose = binpose::Pose::Identity();
+  for (int r = 0; r < 3; ++r) {
+    const nlohmann::json& row = m[static_cast<std::size_t>(r)];
+    if (!row.is_array() || row.size() != 4) throw bad("a row is not 4 numbers");
+    for (int c = 0; c < 4; ++c) {
+      const nlohmann::json& v = row[static_cast<std::size_t>(c)];
+      if (!v.is_number() || !std::isfinite(v.get<double>())) throw bad("a value is not a finite number");
+      (c < 3 ? pose.linear()(r, c) : pose.translation()(r)) = v.get<float>();
+    }
+  }
+  const Eigen::Matrix3f r = pose.linear();
+  if ((r.transpose() * r - Eigen::Matrix3f::Identity()).norm() > 1e-3f || r.determinant() < 0)
+    throw bad("its 3 x 3 part is not a rotation");
+  return pose;
+}
+
+/// The poses of a JSON file: its "poses" (4 x 4 rows each), or the "pose" of each of its
+/// "detections" (a detect result) or "instances" (a simulated scene's ground_truth.json).
+std::vector<binpose::Pose> readPoses(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw binpose::Error(fmt::format("{}: cannot open", path));
+  const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
+  if (j.is_discarded() || !j.is_object()) throw binpose::Error(fmt::format("{}: not a JSON object", path));
+  std::vector<binpose::Pose> poses;
+  if (j.contains("poses") && j["poses"].is_array()) {
+    for (const auto& m : j["poses"]) poses.push_back(poseFromRows(m, path, poses.size()));
+    return poses;
+  }
+  for (const char* key : {"detections", "instances"}) {
+    if (!j.contains(key) || !j[key].is_array()) continue;
+    for (const auto& item : j[key]) {
+      if (!item.is_object() || !item.contains("pose")) throw binpose::Error(fmt::format("{}: an entry of \"{}\" has no pose", path, key));
+      poses.push_back(poseFromRows(item["pose"], path, poses.size()));
+    }
+    return poses;
+  }
+  throw binpose::Error(fmt::format("{}: no \"poses\", \"detections\" or \"instances\" array in it", path));
+}
+
+nlohmann::json rowsOf(const binpose::Pose& pose) {
+  const Eigen::Matrix4f T = pose.matrix();
+  nlohmann::json rows = nlohmann::json::array();
+  for (int i = 0; i < 4; ++i) rows.push_back({T(i, 0), T(i, 1), T(i, 2), T(i, 3)});
+  return rows;
+}
+
+std::string checksJson(const std::vector<binpose::Pose>& poses, const std::vector<binpose::PoseCheck>& checks) {
+  nlohmann::json j;
+  j["checks"] = nlohmann::json::array();
+  for (std::size_t i = 0; i < checks.size(); ++i) {
+    const binpose::PoseCheck& c = checks[i];
+    const binpose::Evidence& e = c.evidence;
+    j["checks"].push_back({{"pose", rowsOf(poses[i])}, {"refined", rowsOf(c.refined)}, {"moved_mm", c.moved_mm},
+                           {"score", c.score}, {"visible_support", c.visible_support},
+                           {"as_found", binpose::refusalName(c.as_found)}, {"as_laid", binpose::refusalName(c.as_laid)},
+                           {"facing", e.facing}, {"supported", e.supported}, {"contradicted", e.contradicted},
+                           {"occluded", e.occluded}, {"on_background", e.on_background}});
+  }
+  return j.dump(2);
+}
+
+int runCheck(const DetectOptions& o) {
+  std::optional<tbb::global_control> threads;
+  if (o.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(o.threads));
+  const std::vector<binpose::Pose> poses = readPoses(o.poses);
+  const binpose::ModelDatabase db = loadOrTrain(o);
+  const float diameter = db.model().diameter;
+  const binpose::PointCloud scan = loadScene(o, diameter);
+  warnAboutUnits(scan, diameter);
+  const binpose::DetectionParams params = detectParams(o, diameter, scan);
+  const std::vector<binpose::PoseCheck> checks = binpose::Detector(db, params).check(scan, poses);
+  fmt::print("{:>4}  {:>6}  {:>7}  {:>8}  {:>27}  {:<15}  {:<15}\n", "pose", "score", "visible", "moved", "refined position (mm)",
+             "as found", "as laid");
+  int found = 0, laid = 0;
+  for (std::size_t i = 0; i < checks.size(); ++i) {
+    const binpose::PoseCheck& c = checks[i];
+    const binpose::Vec3 t = c.refined.translation();
+    fmt::print("{:>4}  {:>6.3f}  {:>7.2f}  {:>5.1f} mm  {:>8.2f} {:>8.2f} {:>9.2f}  {:<15}  {:<15}\n", i + 1, c.score, c.visible_support,
+               c.moved_mm, t.x(), t.y(), t.z(), binpose::refusalName(c.as_found), binpose::refusalName(c.as_laid));
+    found += c.as_found == binpose::Refusal::none;
+    laid += c.as_found != binpose::Refusal::none && c.as_laid == binpose::Refusal::none;
+  }
+  fmt::print("{} poses: {} stand as detect's clique poses do, {} more only as a pose laid on a flat face, {} refused "
+             "(as found: the first test each fails)\n", checks.size(), found, laid, static_cast<int>(checks.size()) - found - laid);
+  if (!o.out.empty()) {
+    std::ofstream out(o.out);
+    out << checksJson(poses, checks) << "\n";
     if (!out) throw binpose::Error(fmt::format("{}: cannot write result", o.out));
     fmt::print("result: {}\n", o.out);
   }
@@ -586,8 +697,9 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   TrainOptions train;
   addTrain(app, train);
-  DetectOptions detect;
+  DetectOptions detect, check;
   addDetect(app, detect);
+  addCheck(app, check);
   SimulateOptions simulate;
   addSimulate(app, simulate);
   EvalOptions eval;
@@ -604,6 +716,7 @@ int main(int argc, char** argv) {
   try {
     if (app.got_subcommand("train")) return runTrain(train);
     if (app.got_subcommand("detect")) return runDetect(detect);
+    if (app.got_subcommand("check")) return runCheck(check);
     if (app.got_subcommand("simulate")) return runSimulate(simulate);
     if (app.got_subcommand("eval")) return runEval(eval);
     if (app.got_subcommand("sweep")) return runSweepCommand(sweep);

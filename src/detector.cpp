@@ -109,6 +109,45 @@ void countStages(const PreparedScan& prepared, std::size_t groups, const MatchSt
   result.refound = state.refound;
 }
 
+/// A scan made ready for matching: depths copied over blocks of pixels thinned out, flying
+/// pixels dropped, then sub-sampled, oriented, measured and its planes found (prepareScan).
+struct ReadyScan {
+  std::optional<PointCloud> thinned, cleaned;
+  const PointCloud* scan = nullptr;  ///< the cloud matched: cleaned, else thinned, else the input
+  std::size_t flying = 0;            ///< flying pixels dropped
+  int pixel_stride = 1;
+  PreparedScan prepared;
+};
+
+void readyScan(const PointCloud& input, const StageSettings& settings, ReadyScan& out) {
+  checkCoordinates(input);
+  out.thinned = thinnedToIndependentNoise(input, settings, out.pixel_stride);
+  const PointCloud& kept = out.thinned ? *out.thinned : input;
+  out.cleaned = withoutFlyingPixels(kept, settings);
+  out.scan = out.cleaned ? &*out.cleaned : &kept;
+  out.flying = kept.size() - out.scan->size();
+  prepareScan(*out.scan, settings, out.prepared);
+}
+
+/// `pose` refined as verification refines a clique's pose, scored, and judged by each of its
+/// tests, as a clique's pose and as a laid one; under `least_score` counts as Refusal::score.
+PoseCheck checkedPose(const Matcher& m, const ModelShape& shape, const Pose& pose, float least_score) {
+  PoseCheck c;
+  c.refined = m.p.refine ? refinePose(pose, m.icp_model, m.scan.points, m.scan_grid, m.icpParams(m.p.icp_iterations)) : pose;
+  c.moved_mm = (c.refined * shape.centroid() - pose * shape.centroid()).norm();
+  std::vector<std::uint32_t> support;
+  c.evidence = m.scoredEvidence(c.refined, support);
+  c.score = c.evidence.score();
+  c.visible_support = c.evidence.visibleSupport();
+  const auto judged = [&](bool laid) {
+    const Refusal r = m.refusal(c.refined, c.score, c.evidence, support, laid);
+    return r == Refusal::none && c.score < least_score ? Refusal::score : r;
+  };
+  c.as_found = judged(false);
+  c.as_laid = judged(true);
+  return c;
+}
+
 /// The settings validated, a plane_min_area of 0 resolved to the model's largest flat face.
 std::unique_ptr<const StageSettings> checkedSettings(const StageSettings& settings, const OrientedModel& model) {
   validateStages(settings);
@@ -158,15 +197,12 @@ DetectionResult Detector::detect(const PointCloud& input) const {
   DetectionResult result;
   result.scene_points = input.size();
   if (input.empty()) return result;
-  checkCoordinates(input);
-  // Depths copied over blocks of pixels thinned out, then the points between two surfaces.
-  const std::optional<PointCloud> thinned = thinnedToIndependentNoise(input, *settings_, result.pixel_stride);
-  const PointCloud& kept = thinned ? *thinned : input;
-  const std::optional<PointCloud> cleaned = withoutFlyingPixels(kept, *settings_);
-  const PointCloud& scan = cleaned ? *cleaned : kept;
-  result.flying_points = kept.size() - scan.size();
-  PreparedScan prepared;  // 5.2.1-5.2.2: sub-sampled, oriented, the bin's planes apart; the noise measured
-  prepareScan(scan, *settings_, prepared);
+  ReadyScan ready;  // 5.2.1-5.2.2: sub-sampled, oriented, the bin's planes apart; the noise measured
+  readyScan(input, *settings_, ready);
+  const PointCloud& scan = *ready.scan;
+  const PreparedScan& prepared = ready.prepared;
+  result.pixel_stride = ready.pixel_stride;
+  result.flying_points = ready.flying;
   const StageSettings& p = prepared.params;  // adapted to the scan's noise
   const PreparedScene& scene = prepared.scene;
   std::vector<std::vector<std::uint32_t>> groups;  // 5.2.3-5.2.4, beside the local voters' set-up
@@ -220,6 +256,35 @@ DetectionResult Detector::detect(const PointCloud& input) const {
   countStages(prepared, groups.size(), state, result);
   result.timing.total_ms = msSince(t0);
   return result;
+}
+
+std::vector<PoseCheck> Detector::check(const PointCloud& input, const std::vector<Pose>& poses) const {
+  if (!settings_->verify) throw Error("checking a pose needs verification on (verify: true)");
+  if (input.empty()) throw Error("checking a pose needs a scan with points; this one is empty");
+  ReadyScan ready;
+  readyScan(input, *settings_, ready);
+  const PreparedScan& prepared = ready.prepared;
+  const StageSettings& p = prepared.params;
+  const std::vector<char> no_voters;
+  const auto never = [](const Pose&) { return false; };
+  const Matcher matcher{db_, p, icp_model_, scored_model_, prepared.scene, *ready.scan, *prepared.grid, &*prepared.pixels,
+                        *prepared.evidence, nullptr, no_voters, *symmetry_, never, never};
+  const float least_score = std::max(p.min_score, p.report_score);
+  std::vector<PoseCheck> checks(poses.size());
+  tbb::parallel_for(std::size_t{0}, poses.size(), [&](std::size_t i) { checks[i] = checkedPose(matcher, *shape_, poses[i], least_score); });
+  return checks;
+}
+
+const char* refusalName(Refusal r) {
+  switch (r) {
+    case Refusal::none: return "none";
+    case Refusal::score: return "score";
+    case Refusal::visible_support: return "visible_support";
+    case Refusal::sunk: return "sunk";
+    case Refusal::behind_face: return "behind_face";
+    case Refusal::outline: return "outline";
+  }
+  return "unknown";
 }
 
 }  // namespace binpose

@@ -184,13 +184,14 @@ Evidence Matcher::scoredEvidence(const Pose& pose, std::vector<std::uint32_t>& s
   return e;
 }
 
-bool Matcher::stands(const Pose& pose, float score, const Evidence& e, std::span<const std::uint32_t> support, bool laid) const {
-  if (score < p.min_score) return false;
-  if (e.visibleSupport() < p.min_visible_support) return false;  // met by the scan only in passing
-  if (sunk(pose)) return false;  // inside the floor, a wall or the table
+Refusal Matcher::refusal(const Pose& pose, float score, const Evidence& e, std::span<const std::uint32_t> support,
+                         bool laid) const {
+  if (score < p.min_score) return Refusal::score;
+  if (e.visibleSupport() < p.min_visible_support) return Refusal::visible_support;  // met by the scan only in passing
+  if (sunk(pose)) return Refusal::sunk;  // inside the floor, a wall or the table
   const std::optional<Plane> face = faceOf(support);  // the scan shows it one flat face
-  if (sunkBehindFace(pose, face, e)) return false;  // inside a surface that goes on from its face
-  return outlineStandsOut(pose, face, laid);
+  if (sunkBehindFace(pose, face, e)) return Refusal::behind_face;  // inside a surface that goes on from its face
+  return outlineStandsOut(pose, face, laid) ? Refusal::none : Refusal::outline;
 }
 
 bool Matcher::sunkBehindFace(const Pose& pose, const std::optional<Plane>& face, const Evidence& e) const {

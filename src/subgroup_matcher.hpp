@@ -118,7 +118,12 @@ struct Matcher {
   /// (sunkBehindFace), and standing out of the scan at its outline (outlineStandsOut; `laid`: a
   /// pose laid on one flat face).
   [[nodiscard]] bool stands(const Pose& pose, float score, const Evidence& e, std::span<const std::uint32_t> support,
-                            bool laid = false) const;
+                            bool laid = false) const {
+    return refusal(pose, score, e, support, laid) == Refusal::none;
+  }
+  /// The first of stands()'s tests that the pose fails (Refusal::score: under min_score), or none.
+  [[nodiscard]] Refusal refusal(const Pose& pose, float score, const Evidence& e, std::span<const std::uint32_t> support,
+                                bool laid = false) const;
   /// Whether the pose, when its support lies on one plane (`face`: faceOf of its support), has
   /// more than a tenth of its visible points behind that plane where the scan shows the plane in
   /// front of them (SceneEvidence::sunkBehind), and those are more than a quarter of the points

@@ -191,6 +191,43 @@ TEST(DetectCli, BadInputExitsTwoWithOneLine) {
   EXPECT_NE(run.err.find("--threads"), std::string::npos) << run.err;
 }
 
+// `binpose check` reads a simulated scene's ground_truth.json: each copy's true pose is judged,
+// and the caps the scan shows well stand; a pose file it cannot use is one line and exit 2.
+TEST(CheckCli, GroundTruthPosesAreJudgedAndBadPosesRefused) {
+  const std::string dir = test::tempPath("check_bin");
+  ASSERT_EQ(runCli(fmt::format("simulate --model builtin:cap --instances 6 --seed 5 --out {}", dir)).code, 0);
+  const std::string out = test::tempPath("checks.json");
+  CliRun run = runCli(fmt::format("check --model {} --scene {}/depth.png --intrinsics {}/camera.json --poses {}/ground_truth.json --out {}",
+                                  capDatabase(), dir, dir, dir, out));
+  ASSERT_EQ(run.code, 0) << run.out;
+  const auto checks = nlohmann::json::parse(test::readAll(out))["checks"];
+  const auto truth = nlohmann::json::parse(test::readAll(dir + "/ground_truth.json"))["instances"];
+  ASSERT_EQ(checks.size(), truth.size());
+  int standing = 0, well_visible = 0;
+  for (std::size_t i = 0; i < checks.size(); ++i) {
+    if (truth[i]["visib_fract"].get<double>() < 0.9) continue;
+    ++well_visible;
+    standing += checks[i]["as_found"] == "none" || checks[i]["as_laid"] == "none";
+    EXPECT_GT(checks[i]["score"].get<double>(), 0.5) << "copy " << i;
+  }
+  EXPECT_GE(well_visible, 2);
+  EXPECT_EQ(standing, well_visible);
+  const std::string scene = fmt::format("--scene {}/depth.png --intrinsics {}/camera.json", dir, dir);
+  const std::string bad = test::tempPath("bad_poses.json");
+  for (const auto& [text, message] : std::vector<std::pair<std::string, std::string>>{
+           {R"({"poses": [[[2, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 500], [0, 0, 0, 1]]]})", "not a rotation"},
+           {R"({"poses": [[[1, 0, 0], [0, 1, 0], [0, 0, 1]]]})", "not 4 numbers"},
+           {R"({"pose": []})", "no \"poses\""},
+           {R"({"poses": [[[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, "x"]]]})", "not a finite number"},
+           {"{\"poses\": [", "not a JSON object"}}) {
+    test::writeAll(bad, text);
+    run = runCli(fmt::format("check --model {} {} --poses {}", capDatabase(), scene, bad));
+    EXPECT_EQ(run.code, 2) << text;
+    EXPECT_EQ(std::count(run.err.begin(), run.err.end(), '\n'), 1) << run.err;
+    EXPECT_NE(run.err.find(message), std::string::npos) << run.err;
+  }
+}
+
 TEST(DetectCli, ParametersFromJsonAndPreset) {
   const std::string params = test::tempPath("params.json");
   test::writeAll(params, R"({"e_gmax": 2.25, "C_n": 9, "use_symmetry": false})");

@@ -282,6 +282,49 @@ std::pair<DetectionResult, DetectionResult> capBinFastAnd(const std::function<vo
 
 }  // namespace
 
+// Detector::check judges given poses as detect() judges its own: every copy detect finds stands
+// at its true pose (as a clique's pose or laid on a face), the true poses of well visible copies
+// score high, and a copy's pose lifted 60 mm into the free space above the bin is refused.
+TEST(Detector, CheckJudgesTruePosesAsDetectJudgesItsOwn) {
+  const ModelDatabase& db = capBin().db;
+  const SimulatedScene& bin = capBin().scene;
+  const Detector detector(db, stagesFor(defaultPreset(), db.model().diameter));
+  const DetectionResult result = detector.detect(bin.cloud);
+  std::vector<Pose> truth, lifted;
+  for (const auto& instance : bin.instances) {
+    truth.push_back(instance.pose);
+    Pose up = instance.pose;
+    up.translation() -= 60.0f * up.translation().normalized();  // towards the sensor at the origin
+    lifted.push_back(up);
+  }
+  const std::vector<PoseCheck> at_truth = detector.check(bin.cloud, truth);
+  const std::vector<PoseCheck> above = detector.check(bin.cloud, lifted);
+  ASSERT_EQ(at_truth.size(), truth.size());
+  const Vec3 c = centroidOf(db.model().points);
+  int found = 0, well_visible = 0;
+  for (std::size_t t = 0; t < truth.size(); ++t) {
+    const PoseCheck& k = at_truth[t];
+    const bool detected = std::any_of(result.detections.begin(), result.detections.end(), [&](const Detection& d) {
+      return poseErrors(d.pose, truth[t], c).centroid_mm < 0.1f * db.model().diameter;
+    });
+    found += detected;
+    if (detected) {
+      EXPECT_TRUE(k.as_found == Refusal::none || k.as_laid == Refusal::none)
+          << "copy " << t << " detected, but its true pose is refused: " << refusalName(k.as_found) << ", " << refusalName(k.as_laid);
+    }
+    if (bin.instances[t].visib_fract > 0.9f) {
+      ++well_visible;
+      EXPECT_LT(k.moved_mm, 1.0f) << "copy " << t << ": ICP keeps a true pose";
+      EXPECT_GT(k.score, 0.6f) << "copy " << t;
+      EXPECT_GT(k.visible_support, 0.8f) << "copy " << t;
+    }
+    EXPECT_NE(above[t].as_found, Refusal::none) << "copy " << t << " lifted into free space";
+    EXPECT_LT(above[t].score, 0.15f) << "copy " << t << " lifted into free space";
+  }
+  EXPECT_GE(found, 10);
+  EXPECT_GE(well_visible, 3);
+}
+
 // A nearly empty bin: six caps apart on the floor. A cap standing on its rim near the middle of
 // the view shows its top and a sliver of wall; its inner wall lies 2 mm under the top, closer
 // than the self-occlusion margin of a database of 1000 points (two sample spacings, 2.8 mm).
@@ -310,6 +353,15 @@ TEST(Detector, EveryCapOfANearlyEmptyBinIsFound) {
     EXPECT_EQ(found, 6) << "seed " << seed;
     EXPECT_EQ(result.detections.size(), 6u) << "seed " << seed;
   }
+}
+
+TEST(Detector, CheckNeedsVerificationAndAScan) {
+  const ModelDatabase& db = capBin().db;
+  StageSettings unverified = stagesFor(defaultPreset(), db.model().diameter);
+  unverified.verify = false;
+  const std::vector<Pose> one{Pose::Identity()};
+  EXPECT_THROW((void)Detector(db, unverified).check(capBin().scene.cloud, one), Error);
+  EXPECT_THROW((void)Detector(db, stagesFor(defaultPreset(), db.model().diameter)).check(PointCloud{}, one), Error);
 }
 
 // tried_share: a clique whose pose is close to one already verified is not verified again. On

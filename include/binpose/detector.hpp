@@ -57,6 +57,31 @@ struct Hypothesis {
   std::vector<std::uint32_t> support;  ///< sorted, distinct scan point indices
 };
 
+/// Which verification test refuses a pose (Detector::check), in the order they are asked.
+enum class Refusal {
+  none,             ///< it stands: the detector would report it
+  score,            ///< its score is under the least score reported (min_score, raised on a rough scan)
+  visible_support,  ///< the scan supports less than min_visible_support of what it could show of it
+  sunk,             ///< it lies inside the bin's floor, a wall or the table the scan shows
+  behind_face,      ///< its body hides behind the plane of the one face the scan shows of it
+  outline,          ///< the scan goes on past its outline, or does not fall away behind it
+};
+
+/// Refusal's name: "none", "score", "visible_support", "sunk", "behind_face", "outline".
+const char* refusalName(Refusal r);
+
+/// What verification makes of one given pose (Detector::check): why a part known to lie there
+/// is, or is not, reported.
+struct PoseCheck {
+  Pose refined;           ///< the given pose after ICP (5.2.6), model -> scan, mm
+  float moved_mm = 0;     ///< how far ICP moved the model's centroid, mm
+  float score = 0;        ///< Detection::score of the refined pose
+  float visible_support = 0;  ///< Evidence::visibleSupport of the refined pose
+  Evidence evidence;      ///< its counts
+  Refusal as_found = Refusal::none;  ///< as a clique's pose is judged
+  Refusal as_laid = Refusal::none;   ///< as a pose laid on one flat face is judged (face_hypotheses)
+};
+
 class ModelShape;
 class PartSymmetry;
 struct ModelFace;
@@ -74,6 +99,11 @@ class Detector {
 
   /// Every instance of the model in the scan. An empty scan gives no detection.
   [[nodiscard]] DetectionResult detect(const PointCloud& scan) const;
+  /// Each of `poses` (model -> scan, mm; where a part is known to lie, say) refined and judged
+  /// as detect() judges its own: on the same prepared scan, by the same tests. A pose that
+  /// stands but was not detected was never found by the search; one that is refused names the
+  /// test. Needs verification on (DetectionParams::verify); an empty scan is an error.
+  [[nodiscard]] std::vector<PoseCheck> check(const PointCloud& scan, const std::vector<Pose>& poses) const;
 
   /// The user's values the detector runs with.
   [[nodiscard]] const DetectionParams& params() const;
