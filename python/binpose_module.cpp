@@ -119,16 +119,19 @@ struct PyResult {
   int pixel_stride = 1;
 };
 
+/// A pose as a 4 x 4 array.
+py::array_t<double> matrixOf(const Pose& pose) {
+  py::array_t<double> out({4, 4});
+  const Eigen::Matrix4f T = pose.matrix();
+  auto m = out.mutable_unchecked<2>();
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 4; ++j) m(i, j) = T(i, j);
+  return out;
+}
+
 PyResult toPython(const DetectionResult& r) {
   PyResult out;
-  for (const Detection& d : r.detections) {
-    py::array_t<double> pose({4, 4});
-    const Eigen::Matrix4f T = d.pose.matrix();
-    auto m = pose.mutable_unchecked<2>();
-    for (int i = 0; i < 4; ++i)
-      for (int j = 0; j < 4; ++j) m(i, j) = T(i, j);
-    out.detections.push_back({std::move(pose), d.score, d.correspondences, d.rms});
-  }
+  for (const Detection& d : r.detections) out.detections.push_back({matrixOf(d.pose), d.score, d.correspondences, d.rms});
   out.timing_ms["preprocess"] = r.timing.preprocess_ms;
   out.timing_ms["vote"] = r.timing.vote_ms;
   out.timing_ms["match"] = r.timing.match_ms;
@@ -186,15 +189,20 @@ class PyDetector {
   }
 
   PyResult detectDepth(const py::object& depth, double fx, double fy, double cx, double cy, double depth_scale) {
-    if (!py::isinstance<py::array>(depth) || py::array(depth).dtype().kind() != 'u' || py::array(depth).itemsize() != 2 ||
-        py::array(depth).ndim() != 2)
-      throw Error("depth must be an H x W numpy array of uint16");
-    const auto image = py::array_t<std::uint16_t, py::array::c_style | py::array::forcecast>::ensure(depth);
-    Intrinsics camera;
-    camera.fx = fx, camera.fy = fy, camera.cx = cx, camera.cy = cy, camera.depth_scale = depth_scale;
-    const int height = int(image.shape(0)), width = int(image.shape(1));
-    const std::vector<std::uint16_t> values(image.data(), image.data() + image.size());
-    return run(depthToCloud(values, width, height, camera), py::none());
+    return run(depthCloud(depth, fx, fy, cx, cy, depth_scale), py::none());
+  }
+
+  py::list check(const py::object& points, const py::object& poses, const py::object& viewpoint) {
+    PointCloud scan;
+    scan.points = pointsOf(points, "points");
+    dropNonFinite(scan);
+    warnIfMetres(scan);
+    return checked(scan, posesOf(poses), viewpoint);
+  }
+
+  py::list checkDepth(const py::object& depth, double fx, double fy, double cx, double cy, const py::object& poses,
+                      double depth_scale) {
+    return checked(depthCloud(depth, fx, fy, cx, cy, depth_scale), posesOf(poses), py::none());
   }
 
   [[nodiscard]] py::dict params() const { return py::module_::import("json").attr("loads")(toJson(params_)); }
@@ -222,9 +230,65 @@ class PyDetector {
     if (!scan.normals.empty()) scan.normals.resize(kept);
   }
 
+  static PointCloud depthCloud(const py::object& depth, double fx, double fy, double cx, double cy, double depth_scale) {
+    if (!py::isinstance<py::array>(depth) || py::array(depth).dtype().kind() != 'u' || py::array(depth).itemsize() != 2 ||
+        py::array(depth).ndim() != 2)
+      throw Error("depth must be an H x W numpy array of uint16");
+    const auto image = py::array_t<std::uint16_t, py::array::c_style | py::array::forcecast>::ensure(depth);
+    Intrinsics camera;
+    camera.fx = fx, camera.fy = fy, camera.cx = cx, camera.cy = cy, camera.depth_scale = depth_scale;
+    const int height = int(image.shape(0)), width = int(image.shape(1));
+    const std::vector<std::uint16_t> values(image.data(), image.data() + image.size());
+    return depthToCloud(values, width, height, camera);
+  }
+
+  /// An N x 4 x 4 array (or a sequence of 4 x 4 ones) as rigid poses, else an error naming the pose.
+  static std::vector<Pose> posesOf(const py::object& poses) {
+    const auto a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(poses);
+    if (!a || a.ndim() != 3 || a.shape(1) != 4 || a.shape(2) != 4) throw Error("poses must be an N x 4 x 4 array (model -> scan, mm)");
+    std::vector<Pose> out;
+    const auto m = a.unchecked<3>();
+    for (py::ssize_t k = 0; k < a.shape(0); ++k) {
+      Pose pose = Pose::Identity();
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 4; ++c) {
+          if (!std::isfinite(m(k, r, c))) throw Error(fmt::format("poses[{}] holds a value that is not finite", k));
+          (c < 3 ? pose.linear()(r, c) : pose.translation()(r)) = static_cast<float>(m(k, r, c));
+        }
+      const Eigen::Matrix3f rotation = pose.linear();
+      if ((rotation.transpose() * rotation - Eigen::Matrix3f::Identity()).norm() > 1e-3f || rotation.determinant() < 0)
+        throw Error(fmt::format("poses[{}]: its 3 x 3 part is not a rotation", k));
+      out.push_back(pose);
+    }
+    return out;
+  }
+
+  /// Detector::check's verdicts as dicts: refined (4 x 4), moved_mm, score, visible_support,
+  /// as_found and as_laid (Refusal's names).
+  py::list checked(const PointCloud& scan, const std::vector<Pose>& poses, const py::object& viewpoint) {
+    useViewpoint(scan, viewpoint);
+    std::vector<PoseCheck> checks;
+    {
+      py::gil_scoped_release released;
+      checks = detector_->check(scan, poses);
+    }
+    py::list out;
+    for (const PoseCheck& c : checks) {
+      py::dict d;
+      d["refined"] = matrixOf(c.refined);
+      d["moved_mm"] = c.moved_mm;
+      d["score"] = c.score;
+      d["visible_support"] = c.visible_support;
+      d["as_found"] = refusalName(c.as_found);
+      d["as_laid"] = refusalName(c.as_laid);
+      out.append(d);
+    }
+    return out;
+  }
+
   /// `viewpoint` None: the detector's own, or for points given without one (not a depth image)
   /// the origin when it can have seen them, else a guess from them (guessViewpoint), as the CLI.
-  PyResult run(const PointCloud& scan, const py::object& viewpoint) {
+  void useViewpoint(const PointCloud& scan, const py::object& viewpoint) {
     std::optional<Vec3> wanted;
     if (!viewpoint.is_none()) wanted = viewpointOf(viewpoint);
     else if (!scan.has_viewpoint && !viewpoint_given_) wanted = guessViewpoint(scan.points).viewpoint;
@@ -232,6 +296,10 @@ class PyDetector {
       params_.viewpoint = *wanted;
       detector_ = std::make_unique<Detector>(*db_, params_);
     }
+  }
+
+  PyResult run(const PointCloud& scan, const py::object& viewpoint) {
+    useViewpoint(scan, viewpoint);
     DetectionResult result;
     {
       py::gil_scoped_release released;
@@ -335,5 +403,12 @@ PYBIND11_MODULE(binpose, m) {
            "origin when it can have seen the points, else guess_viewpoint's).")
       .def("detect_depth", &PyDetector::detectDepth, py::arg("depth"), py::arg("fx"), py::arg("fy"), py::arg("cx"),
            py::arg("cy"), py::arg("depth_scale") = 1.0, "depth: H x W uint16 array; depth_mm = raw * depth_scale.")
+      .def("check", &PyDetector::check, py::arg("points"), py::arg("poses"), py::arg("viewpoint") = py::none(),
+           "Why a part known to lie somewhere is or is not found: each of poses (N x 4 x 4, model -> scan, mm) refined "
+           "and judged as detect judges its own. A list of dicts: refined (4 x 4), moved_mm, score, visible_support, "
+           "as_found and as_laid (the first test refusing it: score, visible_support, sunk, behind_face, outline; "
+           "none: it stands).")
+      .def("check_depth", &PyDetector::checkDepth, py::arg("depth"), py::arg("fx"), py::arg("fy"), py::arg("cx"),
+           py::arg("cy"), py::arg("poses"), py::arg("depth_scale") = 1.0, "check on a depth image (as detect_depth).")
       .def_property_readonly("params", &PyDetector::params, "The values the detector runs with (absolute units).");
 }

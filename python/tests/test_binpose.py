@@ -179,6 +179,35 @@ def test_guess_viewpoint_of_a_scan_in_a_world_frame(caps):
     assert right < len(result)
 
 
+def test_check_judges_the_true_poses(caps):
+    """The caps' true poses stand where the scan shows them well, and a pose lifted 60 mm towards
+    the sensor, into the free space over the bin, is refused by its score."""
+    _, db, camera, truth, depth = caps
+    poses = np.array([t["pose"] for t in truth])
+    lifted = poses.copy()
+    for p in lifted:
+        p[:3, 3] -= 60.0 * p[:3, 3] / np.linalg.norm(p[:3, 3])  # the sensor is at the origin
+    detector = binpose.Detector(db)
+    intrinsics = (camera["fx"], camera["fy"], camera["cx"], camera["cy"])
+    at_truth = detector.check_depth(depth, *intrinsics, poses, depth_scale=camera["depth_scale"])
+    above = detector.check_depth(depth, *intrinsics, lifted, depth_scale=camera["depth_scale"])
+    assert len(at_truth) == len(above) == len(truth)
+    well_seen = [c for c, t in zip(at_truth, truth) if t["visib_fract"] > 0.9]
+    assert len(well_seen) >= 3
+    for c in well_seen:
+        assert "none" in (c["as_found"], c["as_laid"]), c
+        assert c["score"] > 0.5 and c["moved_mm"] < 2.0, c
+        assert c["refined"].shape == (4, 4)
+    for c in above:
+        assert c["as_found"] == "score" and c["score"] < 0.15, c
+    with pytest.raises(ValueError, match="N x 4 x 4"):
+        detector.check_depth(depth, *intrinsics, np.eye(4))
+    bent = poses[:1].copy()
+    bent[0, 0, 0] = 2.0
+    with pytest.raises(ValueError, match="not a rotation"):
+        detector.check_depth(depth, *intrinsics, bent)
+
+
 def test_bad_input_raises_value_error(tmp_path):
     vertices, faces = box(40.0, 30.0, 20.0)
     db = binpose.train((vertices, faces), points=300)

@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# Why copies are missed. Each simulated bin of out/fresh/cache (scripts/fresh_bins.sh makes them)
+# is detected (binpose detect), scored against its ground truth (binpose eval), and the true pose
+# of each of its copies judged as detect judges its own (binpose check). The copies more than
+# half visible that detect misses are then counted by the verdict on their true pose
+# (scripts/why_missed.py): it stands (the search never reached it), or the first test refusing it.
+#   scripts/why_missed.sh TAG [GLOB]      (default GLOB '*-seed*'; needs a build; out/why/TAG)
+# BINPOSE=path runs another build's binpose.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+tag=${1:?usage: scripts/why_missed.sh TAG [GLOB]}
+glob=${2:-*-seed*}
+binpose=${BINPOSE:-build/binpose}
+models=../shared/data/ipd_parts/models
+mkdir -p out/why/db "out/why/$tag"
+bins=(out/fresh/cache/$glob)
+[ -d "${bins[0]}" ] || { echo "no bins match out/fresh/cache/$glob: run scripts/fresh_bins.sh first" >&2; exit 2; }
+for bin in "${bins[@]}"; do
+  name=$(basename "$bin")
+  part=${name%%-*}
+  case $part in
+    cap) model=builtin:cap; info=(); id=1 ;;
+    ipd*) model=$(printf '%s/obj_%06d.ply' "$models" "${part#ipd}"); info=(--models-info "$models/models_info.json"); id=${part#ipd} ;;
+    *) echo "unknown part in $name" >&2; exit 2 ;;
+  esac
+  db=out/why/db/$part.bpdb
+  [ -f "$db" ] || "$binpose" train --model "$model" --out "$db" > /dev/null
+  out=out/why/$tag/$name
+  scan=(--scene "$bin/depth.png" --intrinsics "$bin/camera.json")
+  "$binpose" detect --model "$db" "${scan[@]}" --out "$out.det.json" > /dev/null
+  "$binpose" eval --truth "$bin" --result "$out.det.json" --model "$model" "${info[@]}" --obj-id "$id" --out "$out.eval.json" > /dev/null
+  "$binpose" check --model "$db" "${scan[@]}" --poses "$bin/ground_truth.json" --out "$out.check.json" > /dev/null
+done
+python3 scripts/why_missed.py "out/why/$tag"
