@@ -247,15 +247,27 @@ void warnAboutUnits(const binpose::PointCloud& scan, float diameter) {
                extent, diameter);
 }
 
+/// A pose as JSON: its 4 x 4 matrix's rows.
+nlohmann::json rowsOf(const binpose::Pose& pose) {
+  const Eigen::Matrix4f T = pose.matrix();
+  nlohmann::json rows = nlohmann::json::array();
+  for (int i = 0; i < 4; ++i) rows.push_back({T(i, 0), T(i, 1), T(i, 2), T(i, 3)});
+  return rows;
+}
+
+/// `text` and a newline into `path`, said on stdout; an error when it cannot be written.
+void writeResult(const std::string& path, const std::string& text) {
+  std::ofstream out(path);
+  out << text << "\n";
+  if (!out) throw binpose::Error(fmt::format("{}: cannot write result", path));
+  fmt::print("result: {}\n", path);
+}
+
 std::string resultJson(const binpose::DetectionResult& r, const binpose::DetectionParams& p) {
   nlohmann::json j;
   j["detections"] = nlohmann::json::array();
-  for (const auto& d : r.detections) {
-    const Eigen::Matrix4f T = d.pose.matrix();
-    nlohmann::json rows = nlohmann::json::array();
-    for (int i = 0; i < 4; ++i) rows.push_back({T(i, 0), T(i, 1), T(i, 2), T(i, 3)});
-    j["detections"].push_back({{"pose", rows}, {"score", d.score}, {"correspondences", d.correspondences}, {"fit_rms_mm", d.rms}});
-  }
+  for (const auto& d : r.detections)
+    j["detections"].push_back({{"pose", rowsOf(d.pose)}, {"score", d.score}, {"correspondences", d.correspondences}, {"fit_rms_mm", d.rms}});
   j["timing_ms"] = {{"preprocess", r.timing.preprocess_ms}, {"vote", r.timing.vote_ms}, {"match", r.timing.match_ms}, {"refine", r.timing.refine_ms},
                     {"total", r.timing.total_ms}};
   j["scene_points"] = r.scene_points;
@@ -311,12 +323,7 @@ int runDetect(const DetectOptions& o) {
     binpose::exportDetectionsPly(o.export_ply, scan, r.detections, db.model().points);
     fmt::print("3D view: {}\n", o.export_ply);
   }
-  if (!o.out.empty()) {
-    std::ofstream out(o.out);
-    out << resultJson(r, params) << "\n";
-    if (!out) throw binpose::Error(fmt::format("{}: cannot write result", o.out));
-    fmt::print("result: {}\n", o.out);
-  }
+  if (!o.out.empty()) writeResult(o.out, resultJson(r, params));
   return 0;
 }
 
@@ -335,9 +342,7 @@ binpose::Pose poseFromRows(const nlohmann::json& m, const std::string& path, std
       (c < 3 ? pose.linear()(r, c) : pose.translation()(r)) = v.get<float>();
     }
   }
-  const Eigen::Matrix3f r = pose.linear();
-  if ((r.transpose() * r - Eigen::Matrix3f::Identity()).norm() > 1e-3f || r.determinant() < 0)
-    throw bad("its 3 x 3 part is not a rotation");
+  if (!binpose::isRotation(pose.linear())) throw bad("its 3 x 3 part is not a rotation");
   return pose;
 }
 
@@ -362,13 +367,6 @@ std::vector<binpose::Pose> readPoses(const std::string& path) {
     return poses;
   }
   throw binpose::Error(fmt::format("{}: no \"poses\", \"detections\" or \"instances\" array in it", path));
-}
-
-nlohmann::json rowsOf(const binpose::Pose& pose) {
-  const Eigen::Matrix4f T = pose.matrix();
-  nlohmann::json rows = nlohmann::json::array();
-  for (int i = 0; i < 4; ++i) rows.push_back({T(i, 0), T(i, 1), T(i, 2), T(i, 3)});
-  return rows;
 }
 
 std::string checksJson(const std::vector<binpose::Pose>& poses, const std::vector<binpose::PoseCheck>& checks) {
@@ -409,12 +407,7 @@ int runCheck(const DetectOptions& o) {
   }
   fmt::print("{} poses: {} stand as detect's clique poses do, {} more only as a pose laid on a flat face, {} refused "
              "(as found: the first test each fails)\n", checks.size(), found, laid, static_cast<int>(checks.size()) - found - laid);
-  if (!o.out.empty()) {
-    std::ofstream out(o.out);
-    out << checksJson(poses, checks) << "\n";
-    if (!out) throw binpose::Error(fmt::format("{}: cannot write result", o.out));
-    fmt::print("result: {}\n", o.out);
-  }
+  if (!o.out.empty()) writeResult(o.out, checksJson(poses, checks));
   return 0;
 }
 

@@ -255,9 +255,7 @@ class PyDetector {
           if (!std::isfinite(m(k, r, c))) throw Error(fmt::format("poses[{}] holds a value that is not finite", k));
           (c < 3 ? pose.linear()(r, c) : pose.translation()(r)) = static_cast<float>(m(k, r, c));
         }
-      const Eigen::Matrix3f rotation = pose.linear();
-      if ((rotation.transpose() * rotation - Eigen::Matrix3f::Identity()).norm() > 1e-3f || rotation.determinant() < 0)
-        throw Error(fmt::format("poses[{}]: its 3 x 3 part is not a rotation", k));
+      if (!isRotation(pose.linear())) throw Error(fmt::format("poses[{}]: its 3 x 3 part is not a rotation", k));
       out.push_back(pose);
     }
     return out;

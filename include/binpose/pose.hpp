@@ -17,6 +17,12 @@ inline Pose turnAbout(const Vec3& axis, float angle, const Vec3& point) {
   return t;
 }
 
+/// Whether `r` is a proper rotation (orthonormal within 1e-3, determinant +1): a pose read from a
+/// user's file or array must be one before it is used as rigid.
+inline bool isRotation(const Eigen::Matrix3f& r) {
+  return (r.transpose() * r - Eigen::Matrix3f::Identity()).norm() <= 1e-3f && r.determinant() > 0;
+}
+
 struct PoseFit {
   Pose pose = Pose::Identity();
   float rms = 0;    ///< root-mean-square residual of the fit, mm
