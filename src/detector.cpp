@@ -27,6 +27,9 @@
 namespace binpose {
 namespace {
 
+/// Poses Detector::check judges in one call: each takes an ICP run (a millisecond or so), and a
+/// file of millions is a mistake, not a question.
+constexpr std::size_t kMostCheckedPoses = 10000;
 /// The near-model grid's cell: the removal distance, and at least the same-place tolerance.
 constexpr float kShapeCellShare = 0.1f;
 /// A flat face of the model is tried from a quarter of its diameter squared (face_hypotheses).
@@ -261,6 +264,8 @@ DetectionResult Detector::detect(const PointCloud& input) const {
 std::vector<PoseCheck> Detector::check(const PointCloud& input, const std::vector<Pose>& poses) const {
   if (!settings_->verify) throw Error("checking a pose needs verification on (verify: true)");
   if (input.empty()) throw Error("checking a pose needs a scan with points; this one is empty");
+  if (poses.size() > kMostCheckedPoses)
+    throw Error(fmt::format("checking {} poses at once: at most {} a call", poses.size(), kMostCheckedPoses));
   ReadyScan ready;
   readyScan(input, *settings_, ready);
   const PreparedScan& prepared = ready.prepared;

@@ -362,6 +362,8 @@ TEST(Detector, CheckNeedsVerificationAndAScan) {
   const std::vector<Pose> one{Pose::Identity()};
   EXPECT_THROW((void)Detector(db, unverified).check(capBin().scene.cloud, one), Error);
   EXPECT_THROW((void)Detector(db, stagesFor(defaultPreset(), db.model().diameter)).check(PointCloud{}, one), Error);
+  const std::vector<Pose> too_many(10001, Pose::Identity());
+  EXPECT_THROW((void)Detector(db, stagesFor(defaultPreset(), db.model().diameter)).check(capBin().scene.cloud, too_many), Error);
 }
 
 // tried_share: a clique whose pose is close to one already verified is not verified again. On
