@@ -162,9 +162,12 @@ void addDetect(CLI::App& app, DetectOptions& o) {
 }
 
 void addCheck(CLI::App& app, DetectOptions& o) {
-  CLI::App* c = app.add_subcommand("check", "Judge given poses as detect judges its own: why a part known to lie there is, or is not, found");
+  CLI::App* c = app.add_subcommand(
+      "check", "Judge given poses as detect judges its own: why a part known to lie there is, or is not, found");
   addScanOptions(c, o);
-  c->add_option("--poses", o.poses, "JSON of poses (model -> scan, mm, 4 x 4 rows): a detect result, a simulated scene's ground_truth.json, or {\"poses\": [...]}")
+  c->add_option("--poses", o.poses,
+                "JSON of poses (model -> scan, mm, 4 x 4 rows): a detect result, a simulated scene's ground_truth.json, or "
+                "{\"poses\": [...]}")
       ->required();
   c->add_option("--out", o.out, "Write each pose's verdict as JSON here");
 }
@@ -267,7 +270,8 @@ std::string resultJson(const binpose::DetectionResult& r, const binpose::Detecti
   nlohmann::json j;
   j["detections"] = nlohmann::json::array();
   for (const auto& d : r.detections)
-    j["detections"].push_back({{"pose", rowsOf(d.pose)}, {"score", d.score}, {"correspondences", d.correspondences}, {"fit_rms_mm", d.rms}});
+    j["detections"].push_back(
+        {{"pose", rowsOf(d.pose)}, {"score", d.score}, {"correspondences", d.correspondences}, {"fit_rms_mm", d.rms}});
   j["timing_ms"] = {{"preprocess", r.timing.preprocess_ms}, {"vote", r.timing.vote_ms}, {"match", r.timing.match_ms}, {"refine", r.timing.refine_ms},
                     {"total", r.timing.total_ms}};
   j["scene_points"] = r.scene_points;
@@ -361,7 +365,8 @@ std::vector<binpose::Pose> readPoses(const std::string& path) {
   for (const char* key : {"detections", "instances"}) {
     if (!j.contains(key) || !j[key].is_array()) continue;
     for (const auto& item : j[key]) {
-      if (!item.is_object() || !item.contains("pose")) throw binpose::Error(fmt::format("{}: an entry of \"{}\" has no pose", path, key));
+      if (!item.is_object() || !item.contains("pose"))
+        throw binpose::Error(fmt::format("{}: an entry of \"{}\" has no pose", path, key));
       poses.push_back(poseFromRows(item["pose"], path, poses.size()));
     }
     return poses;
@@ -375,11 +380,18 @@ std::string checksJson(const std::vector<binpose::Pose>& poses, const std::vecto
   for (std::size_t i = 0; i < checks.size(); ++i) {
     const binpose::PoseCheck& c = checks[i];
     const binpose::Evidence& e = c.evidence;
-    j["checks"].push_back({{"pose", rowsOf(poses[i])}, {"refined", rowsOf(c.refined)}, {"moved_mm", c.moved_mm},
-                           {"score", c.score}, {"visible_support", c.visible_support},
-                           {"as_found", binpose::refusalName(c.as_found)}, {"as_laid", binpose::refusalName(c.as_laid)},
-                           {"facing", e.facing}, {"supported", e.supported}, {"contradicted", e.contradicted},
-                           {"occluded", e.occluded}, {"on_background", e.on_background}});
+    j["checks"].push_back({{"pose", rowsOf(poses[i])},
+                           {"refined", rowsOf(c.refined)},
+                           {"moved_mm", c.moved_mm},
+                           {"score", c.score},
+                           {"visible_support", c.visible_support},
+                           {"as_found", binpose::refusalName(c.as_found)},
+                           {"as_laid", binpose::refusalName(c.as_laid)},
+                           {"facing", e.facing},
+                           {"supported", e.supported},
+                           {"contradicted", e.contradicted},
+                           {"occluded", e.occluded},
+                           {"on_background", e.on_background}});
   }
   return j.dump(2);
 }
@@ -400,13 +412,16 @@ int runCheck(const DetectOptions& o) {
   for (std::size_t i = 0; i < checks.size(); ++i) {
     const binpose::PoseCheck& c = checks[i];
     const binpose::Vec3 t = c.refined.translation();
-    fmt::print("{:>4}  {:>6.3f}  {:>7.2f}  {:>5.1f} mm  {:>8.2f} {:>8.2f} {:>9.2f}  {:<15}  {:<15}\n", i + 1, c.score, c.visible_support,
-               c.moved_mm, t.x(), t.y(), t.z(), binpose::refusalName(c.as_found), binpose::refusalName(c.as_laid));
+    fmt::print("{:>4}  {:>6.3f}  {:>7.2f}  {:>5.1f} mm  {:>8.2f} {:>8.2f} {:>9.2f}  {:<15}  {:<15}\n", i + 1, c.score,
+               c.visible_support, c.moved_mm, t.x(), t.y(), t.z(), binpose::refusalName(c.as_found),
+               binpose::refusalName(c.as_laid));
     found += c.as_found == binpose::Refusal::none;
     laid += c.as_found != binpose::Refusal::none && c.as_laid == binpose::Refusal::none;
   }
-  fmt::print("{} poses: {} stand as detect's clique poses do, {} more only as a pose laid on a flat face, {} refused "
-             "(as found: the first test each fails)\n", checks.size(), found, laid, static_cast<int>(checks.size()) - found - laid);
+  fmt::print(
+      "{} poses: {} stand as detect's clique poses do, {} more only as a pose laid on a flat face, {} refused "
+      "(as found: the first test each fails)\n",
+      checks.size(), found, laid, static_cast<int>(checks.size()) - found - laid);
   if (!o.out.empty()) writeResult(o.out, checksJson(poses, checks));
   return 0;
 }

@@ -245,7 +245,8 @@ class PyDetector {
   /// An N x 4 x 4 array (or a sequence of 4 x 4 ones) as rigid poses, else an error naming the pose.
   static std::vector<Pose> posesOf(const py::object& poses) {
     const auto a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(poses);
-    if (!a || a.ndim() != 3 || a.shape(1) != 4 || a.shape(2) != 4) throw Error("poses must be an N x 4 x 4 array (model -> scan, mm)");
+    if (!a || a.ndim() != 3 || a.shape(1) != 4 || a.shape(2) != 4)
+      throw Error("poses must be an N x 4 x 4 array (model -> scan, mm)");
     std::vector<Pose> out;
     const auto m = a.unchecked<3>();
     for (py::ssize_t k = 0; k < a.shape(0); ++k) {
@@ -391,22 +392,20 @@ PYBIND11_MODULE(binpose, m) {
       "else a guess from the scan (z up). A dict: viewpoint (x, y, z) mm, moved, hidden and origin_hidden (the share "
       "of points each cannot see).");
   py::class_<PyDetector>(m, "Detector", "Finds every copy of a database's model in scans.")
-      .def(py::init<const Database&, const std::string&, const py::kwargs&>(), py::arg("database"),
-           py::arg("preset") = "default",
+      .def(py::init<const Database&, const std::string&, const py::kwargs&>(), py::arg("database"), py::arg("preset") = "default",
            "preset: default or thesis; keyword parameters by DetectionParams's names (r, eta, e_gmax, C_n, ...), "
            "in mm, replacing the preset's values scaled to the model.")
-      .def("detect", &PyDetector::detect, py::arg("points"), py::arg("normals") = py::none(),
-           py::arg("viewpoint") = py::none(),
+      .def("detect", &PyDetector::detect, py::arg("points"), py::arg("normals") = py::none(), py::arg("viewpoint") = py::none(),
            "points: N x 3 array in mm; normals: N x 3 or None; viewpoint: (x, y, z) mm (None: the constructor's, else the "
            "origin when it can have seen the points, else guess_viewpoint's).")
-      .def("detect_depth", &PyDetector::detectDepth, py::arg("depth"), py::arg("fx"), py::arg("fy"), py::arg("cx"),
-           py::arg("cy"), py::arg("depth_scale") = 1.0, "depth: H x W uint16 array; depth_mm = raw * depth_scale.")
+      .def("detect_depth", &PyDetector::detectDepth, py::arg("depth"), py::arg("fx"), py::arg("fy"), py::arg("cx"), py::arg("cy"),
+           py::arg("depth_scale") = 1.0, "depth: H x W uint16 array; depth_mm = raw * depth_scale.")
       .def("check", &PyDetector::check, py::arg("points"), py::arg("poses"), py::arg("viewpoint") = py::none(),
            "Why a part known to lie somewhere is or is not found: each of poses (N x 4 x 4, model -> scan, mm) refined "
            "and judged as detect judges its own. A list of dicts: refined (4 x 4), moved_mm, score, visible_support, "
            "as_found and as_laid (the first test refusing it: score, visible_support, sunk, behind_face, outline; "
            "none: it stands).")
-      .def("check_depth", &PyDetector::checkDepth, py::arg("depth"), py::arg("fx"), py::arg("fy"), py::arg("cx"),
-           py::arg("cy"), py::arg("poses"), py::arg("depth_scale") = 1.0, "check on a depth image (as detect_depth).")
+      .def("check_depth", &PyDetector::checkDepth, py::arg("depth"), py::arg("fx"), py::arg("fy"), py::arg("cx"), py::arg("cy"),
+           py::arg("poses"), py::arg("depth_scale") = 1.0, "check on a depth image (as detect_depth).")
       .def_property_readonly("params", &PyDetector::params, "The values the detector runs with (absolute units).");
 }

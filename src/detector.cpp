@@ -272,22 +272,41 @@ std::vector<PoseCheck> Detector::check(const PointCloud& input, const std::vecto
   const StageSettings& p = prepared.params;
   const std::vector<char> no_voters;
   const auto never = [](const Pose&) { return false; };
-  const Matcher matcher{db_, p, icp_model_, scored_model_, prepared.scene, *ready.scan, *prepared.grid, &*prepared.pixels,
-                        *prepared.evidence, nullptr, no_voters, *symmetry_, never, never};
+  const Matcher matcher{db_,
+                        p,
+                        icp_model_,
+                        scored_model_,
+                        prepared.scene,
+                        *ready.scan,
+                        *prepared.grid,
+                        &*prepared.pixels,
+                        *prepared.evidence,
+                        nullptr,
+                        no_voters,
+                        *symmetry_,
+                        never,
+                        never};
   const float least_score = std::max(p.min_score, p.report_score);
   std::vector<PoseCheck> checks(poses.size());
-  tbb::parallel_for(std::size_t{0}, poses.size(), [&](std::size_t i) { checks[i] = checkedPose(matcher, *shape_, poses[i], least_score); });
+  tbb::parallel_for(std::size_t{0}, poses.size(),
+                    [&](std::size_t i) { checks[i] = checkedPose(matcher, *shape_, poses[i], least_score); });
   return checks;
 }
 
 const char* refusalName(Refusal r) {
   switch (r) {
-    case Refusal::none: return "none";
-    case Refusal::score: return "score";
-    case Refusal::visible_support: return "visible_support";
-    case Refusal::sunk: return "sunk";
-    case Refusal::behind_face: return "behind_face";
-    case Refusal::outline: return "outline";
+    case Refusal::none:
+      return "none";
+    case Refusal::score:
+      return "score";
+    case Refusal::visible_support:
+      return "visible_support";
+    case Refusal::sunk:
+      return "sunk";
+    case Refusal::behind_face:
+      return "behind_face";
+    case Refusal::outline:
+      return "outline";
   }
   return "unknown";
 }

@@ -188,7 +188,7 @@ Refusal Matcher::refusal(const Pose& pose, float score, const Evidence& e, std::
                          bool laid) const {
   if (score < p.min_score) return Refusal::score;
   if (e.visibleSupport() < p.min_visible_support) return Refusal::visible_support;  // met by the scan only in passing
-  if (sunk(pose)) return Refusal::sunk;  // inside the floor, a wall or the table
+  if (sunk(pose)) return Refusal::sunk;                                             // inside the floor, a wall or the table
   const std::optional<Plane> face = faceOf(support);  // the scan shows it one flat face
   if (sunkBehindFace(pose, face, e)) return Refusal::behind_face;  // inside a surface that goes on from its face
   return outlineStandsOut(pose, face, laid) ? Refusal::none : Refusal::outline;

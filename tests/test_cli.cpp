@@ -197,8 +197,9 @@ TEST(CheckCli, GroundTruthPosesAreJudgedAndBadPosesRefused) {
   const std::string dir = test::tempPath("check_bin");
   ASSERT_EQ(runCli(fmt::format("simulate --model builtin:cap --instances 6 --seed 5 --out {}", dir)).code, 0);
   const std::string out = test::tempPath("checks.json");
-  CliRun run = runCli(fmt::format("check --model {} --scene {}/depth.png --intrinsics {}/camera.json --poses {}/ground_truth.json --out {}",
-                                  capDatabase(), dir, dir, dir, out));
+  CliRun run = runCli(
+      fmt::format("check --model {} --scene {}/depth.png --intrinsics {}/camera.json --poses {}/ground_truth.json --out {}",
+                  capDatabase(), dir, dir, dir, out));
   ASSERT_EQ(run.code, 0) << run.out;
   const auto checks = nlohmann::json::parse(test::readAll(out))["checks"];
   const auto truth = nlohmann::json::parse(test::readAll(dir + "/ground_truth.json"))["instances"];

@@ -310,7 +310,8 @@ TEST(Detector, CheckJudgesTruePosesAsDetectJudgesItsOwn) {
     found += detected;
     if (detected) {
       EXPECT_TRUE(k.as_found == Refusal::none || k.as_laid == Refusal::none)
-          << "copy " << t << " detected, but its true pose is refused: " << refusalName(k.as_found) << ", " << refusalName(k.as_laid);
+          << "copy " << t << " detected, but its true pose is refused: " << refusalName(k.as_found) << ", "
+          << refusalName(k.as_laid);
     }
     if (bin.instances[t].visib_fract > 0.9f) {
       ++well_visible;

@@ -73,11 +73,11 @@ const char* refusalName(Refusal r);
 /// What verification makes of one given pose (Detector::check): why a part known to lie there
 /// is, or is not, reported.
 struct PoseCheck {
-  Pose refined;           ///< the given pose after ICP (5.2.6), model -> scan, mm
-  float moved_mm = 0;     ///< how far ICP moved the model's centroid, mm
-  float score = 0;        ///< Detection::score of the refined pose
-  float visible_support = 0;  ///< Evidence::visibleSupport of the refined pose
-  Evidence evidence;      ///< its counts
+  Pose refined;                      ///< the given pose after ICP (5.2.6), model -> scan, mm
+  float moved_mm = 0;                ///< how far ICP moved the model's centroid, mm
+  float score = 0;                   ///< Detection::score of the refined pose
+  float visible_support = 0;         ///< Evidence::visibleSupport of the refined pose
+  Evidence evidence;                 ///< its counts
   Refusal as_found = Refusal::none;  ///< as a clique's pose is judged
   Refusal as_laid = Refusal::none;   ///< as a pose laid on one flat face is judged (face_hypotheses)
 };
