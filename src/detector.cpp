@@ -20,6 +20,7 @@
 
 #include <algorithm>
 #include <fmt/format.h>
+#include <iterator>
 #include <numeric>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_invoke.h>
@@ -272,20 +273,10 @@ std::vector<PoseCheck> Detector::check(const PointCloud& input, const std::vecto
   const StageSettings& p = prepared.params;
   const std::vector<char> no_voters;
   const auto never = [](const Pose&) { return false; };
-  const Matcher matcher{db_,
-                        p,
-                        icp_model_,
-                        scored_model_,
-                        prepared.scene,
-                        *ready.scan,
-                        *prepared.grid,
-                        &*prepared.pixels,
-                        *prepared.evidence,
-                        nullptr,
-                        no_voters,
-                        *symmetry_,
-                        never,
-                        never};
+  // clang-format off
+  const Matcher matcher{db_, p, icp_model_, scored_model_, prepared.scene, *ready.scan, *prepared.grid, &*prepared.pixels,
+                        *prepared.evidence, nullptr, no_voters, *symmetry_, never, never};
+  // clang-format on
   const float least_score = std::max(p.min_score, p.report_score);
   std::vector<PoseCheck> checks(poses.size());
   tbb::parallel_for(std::size_t{0}, poses.size(),
@@ -294,21 +285,10 @@ std::vector<PoseCheck> Detector::check(const PointCloud& input, const std::vecto
 }
 
 const char* refusalName(Refusal r) {
-  switch (r) {
-    case Refusal::none:
-      return "none";
-    case Refusal::score:
-      return "score";
-    case Refusal::visible_support:
-      return "visible_support";
-    case Refusal::sunk:
-      return "sunk";
-    case Refusal::behind_face:
-      return "behind_face";
-    case Refusal::outline:
-      return "outline";
-  }
-  return "unknown";
+  // In Refusal's order.
+  static constexpr const char* kNames[] = {"none", "score", "visible_support", "sunk", "behind_face", "outline"};
+  const auto i = static_cast<std::size_t>(r);
+  return i < std::size(kNames) ? kNames[i] : "unknown";
 }
 
 }  // namespace binpose
