@@ -110,7 +110,7 @@ int runTrain(const TrainOptions& o) {
 struct DetectOptions {
   std::string model, scene, intrinsics, image_id, out, preset = "default", params_file, render, export_ply, poses;
   std::string units = "auto", model_units = "auto";
-  std::optional<int> max_instances, C_n, k_normals;
+  std::optional<int> max_instances, C_n, k_normals, obj_id;
   std::optional<float> r, rho_sub, eta, e_gmax, sigma_dist, min_score;
   std::optional<bool> refine, verify, symmetry;
   std::vector<float> viewpoint;
@@ -166,9 +166,10 @@ void addCheck(CLI::App& app, DetectOptions& o) {
       "check", "Judge given poses as detect judges its own: why a part known to lie there is, or is not, found");
   addScanOptions(c, o);
   c->add_option("--poses", o.poses,
-                "JSON of poses (model -> scan, mm, 4 x 4 rows): a detect result, a simulated scene's ground_truth.json, or "
-                "{\"poses\": [...]}")
+                "JSON of poses (model -> scan, mm, 4 x 4 rows): a detect result, a simulated scene's ground_truth.json, "
+                "{\"poses\": [...]}, or a BOP scene_gt.json")
       ->required();
+  c->add_option("--obj-id", o.obj_id, "With a BOP scene_gt.json: only this object's poses (--image-id picks the image)");
   c->add_option("--out", o.out, "Write each pose's verdict as JSON here");
 }
 
@@ -350,13 +351,37 @@ binpose::Pose poseFromRows(const nlohmann::json& m, const std::string& path, std
   return pose;
 }
 
-/// The poses of a JSON file: its "poses" (4 x 4 rows each), or the "pose" of each of its
-/// "detections" (a detect result) or "instances" (a simulated scene's ground_truth.json).
-std::vector<binpose::Pose> readPoses(const std::string& path) {
+/// The poses of one image of a BOP scene_gt.json (`image_id`, else its first): each object's
+/// cam_R_m2c (row-major) and cam_t_m2c (mm), of object `obj_id` alone when it is given.
+std::vector<binpose::Pose> bopPoses(const nlohmann::json& j, const std::string& path, const std::string& image_id,
+                                    std::optional<int> obj_id) {
+  if (!image_id.empty() && !j.contains(image_id)) throw binpose::Error(fmt::format("{}: no entry for image '{}'", path, image_id));
+  const nlohmann::json& image = image_id.empty() ? j.begin().value() : j.at(image_id);
+  if (!image.is_array()) throw binpose::Error(fmt::format("{}: image '{}' holds no list of objects", path, image_id));
+  std::vector<binpose::Pose> poses;
+  for (const auto& item : image) {
+    const bool has = item.is_object() && item.contains("cam_R_m2c") && item.contains("cam_t_m2c");
+    const nlohmann::json r = has ? item.at("cam_R_m2c") : nlohmann::json(), t = has ? item.at("cam_t_m2c") : nlohmann::json();
+    if (!r.is_array() || r.size() != 9 || !t.is_array() || t.size() != 3)
+      throw binpose::Error(fmt::format("{}: an object has no 9-number cam_R_m2c and 3-number cam_t_m2c", path));
+    if (obj_id && !(item.contains("obj_id") && item.at("obj_id").is_number_integer() && item.at("obj_id").get<int>() == *obj_id)) continue;
+    const nlohmann::json rows = {{r[0], r[1], r[2], t[0]}, {r[3], r[4], r[5], t[1]}, {r[6], r[7], r[8], t[2]}};
+    poses.push_back(poseFromRows(rows, path, poses.size()));
+  }
+  return poses;
+}
+
+/// The poses of a JSON file: its "poses" (4 x 4 rows each), the "pose" of each of its
+/// "detections" (a detect result) or "instances" (a simulated scene's ground_truth.json), or a
+/// BOP scene_gt.json's (bopPoses).
+std::vector<binpose::Pose> readPoses(const std::string& path, const std::string& image_id, std::optional<int> obj_id) {
   std::ifstream in(path);
   if (!in) throw binpose::Error(fmt::format("{}: cannot open", path));
   const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
   if (j.is_discarded() || !j.is_object()) throw binpose::Error(fmt::format("{}: not a JSON object", path));
+  if (!j.empty() && j.begin().value().is_array() && !j.begin().value().empty() && j.begin().value()[0].is_object() &&
+      j.begin().value()[0].contains("cam_R_m2c"))
+    return bopPoses(j, path, image_id, obj_id);
   std::vector<binpose::Pose> poses;
   if (j.contains("poses") && j["poses"].is_array()) {
     for (const auto& m : j["poses"]) poses.push_back(poseFromRows(m, path, poses.size()));
@@ -371,7 +396,7 @@ std::vector<binpose::Pose> readPoses(const std::string& path) {
     }
     return poses;
   }
-  throw binpose::Error(fmt::format("{}: no \"poses\", \"detections\" or \"instances\" array in it", path));
+  throw binpose::Error(fmt::format("{}: no \"poses\", \"detections\" or \"instances\" array in it, nor a BOP scene_gt.json", path));
 }
 
 std::string checksJson(const std::vector<binpose::Pose>& poses, const std::vector<binpose::PoseCheck>& checks) {
@@ -399,7 +424,7 @@ std::string checksJson(const std::vector<binpose::Pose>& poses, const std::vecto
 int runCheck(const DetectOptions& o) {
   std::optional<tbb::global_control> threads;
   if (o.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(o.threads));
-  const std::vector<binpose::Pose> poses = readPoses(o.poses);
+  const std::vector<binpose::Pose> poses = readPoses(o.poses, o.image_id, o.obj_id);
   const binpose::ModelDatabase db = loadOrTrain(o);
   const float diameter = db.model().diameter;
   const binpose::PointCloud scan = loadScene(o, diameter);

@@ -213,6 +213,17 @@ TEST(CheckCli, GroundTruthPosesAreJudgedAndBadPosesRefused) {
   }
   EXPECT_GE(well_visible, 2);
   EXPECT_EQ(standing, well_visible);
+  // The same poses from BOP's scene_gt.json (cam_R_m2c, cam_t_m2c), the same verdicts.
+  const std::string bop_out = test::tempPath("checks_bop.json");
+  run = runCli(fmt::format("check --model {} --scene {}/depth.png --intrinsics {}/camera.json --poses {}/scene_gt.json --obj-id 1 --out {}",
+                           capDatabase(), dir, dir, dir, bop_out));
+  ASSERT_EQ(run.code, 0) << run.out;
+  const auto bop_checks = nlohmann::json::parse(test::readAll(bop_out))["checks"];
+  ASSERT_EQ(bop_checks.size(), checks.size());
+  for (std::size_t i = 0; i < checks.size(); ++i) {
+    EXPECT_NEAR(bop_checks[i]["score"].get<double>(), checks[i]["score"].get<double>(), 1e-3) << "copy " << i;
+    EXPECT_EQ(bop_checks[i]["as_found"], checks[i]["as_found"]) << "copy " << i;
+  }
   const std::string scene = fmt::format("--scene {}/depth.png --intrinsics {}/camera.json", dir, dir);
   const std::string bad = test::tempPath("bad_poses.json");
   for (const auto& [text, message] : std::vector<std::pair<std::string, std::string>>{
@@ -220,7 +231,8 @@ TEST(CheckCli, GroundTruthPosesAreJudgedAndBadPosesRefused) {
            {R"({"poses": [[[1, 0, 0], [0, 1, 0], [0, 0, 1]]]})", "not 4 numbers"},
            {R"({"pose": []})", "no \"poses\""},
            {R"({"poses": [[[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, "x"]]]})", "not a finite number"},
-           {"{\"poses\": [", "not a JSON object"}}) {
+           {"{\"poses\": [", "not a JSON object"},
+           {R"({"0": [{"cam_R_m2c": [1, 0, 0, 0, 1, 0, 0, 0, 1]}]})", "cam_t_m2c"}}) {
     test::writeAll(bad, text);
     run = runCli(fmt::format("check --model {} {} --poses {}", capDatabase(), scene, bad));
     EXPECT_EQ(run.code, 2) << text;
