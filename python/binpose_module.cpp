@@ -176,16 +176,7 @@ class PyDetector {
   }
 
   PyResult detect(const py::object& points, const py::object& normals, const py::object& viewpoint) {
-    PointCloud scan;
-    scan.points = pointsOf(points, "points");
-    if (!normals.is_none()) {
-      scan.normals = pointsOf(normals, "normals");
-      if (scan.normals.size() != scan.points.size())
-        throw Error(fmt::format("normals has {} rows for {} points", scan.normals.size(), scan.points.size()));
-    }
-    dropNonFinite(scan);
-    warnIfMetres(scan);
-    return run(scan, viewpoint);
+    return run(cloudOf(points, normals), viewpoint);
   }
 
   PyResult detectDepth(const py::object& depth, double fx, double fy, double cx, double cy, double depth_scale) {
@@ -193,11 +184,7 @@ class PyDetector {
   }
 
   py::list check(const py::object& points, const py::object& poses, const py::object& viewpoint) {
-    PointCloud scan;
-    scan.points = pointsOf(points, "points");
-    dropNonFinite(scan);
-    warnIfMetres(scan);
-    return checked(scan, posesOf(poses), viewpoint);
+    return checked(cloudOf(points, py::none()), posesOf(poses), viewpoint);
   }
 
   py::list checkDepth(const py::object& depth, double fx, double fy, double cx, double cy, const py::object& poses,
@@ -228,6 +215,21 @@ class PyDetector {
     }
     scan.points.resize(kept);
     if (!scan.normals.empty()) scan.normals.resize(kept);
+  }
+
+  /// The scan of N x 3 `points` (and `normals`, or None), mm, its non-finite rows dropped; a
+  /// warning where they look like metres.
+  PointCloud cloudOf(const py::object& points, const py::object& normals) const {
+    PointCloud scan;
+    scan.points = pointsOf(points, "points");
+    if (!normals.is_none()) {
+      scan.normals = pointsOf(normals, "normals");
+      if (scan.normals.size() != scan.points.size())
+        throw Error(fmt::format("normals has {} rows for {} points", scan.normals.size(), scan.points.size()));
+    }
+    dropNonFinite(scan);
+    warnIfMetres(scan);
+    return scan;
   }
 
   static PointCloud depthCloud(const py::object& depth, double fx, double fy, double cx, double cy, double depth_scale) {
