@@ -10,16 +10,12 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 tag=${1:?usage: scripts/sparse_bins.sh TAG}
-binpose=${BINPOSE:-build/binpose}
-models=../shared/data/ipd_parts/models
+source scripts/judge_bin.sh
 mkdir -p out/sparse/cache out/sparse/db "out/sparse/$tag"
 # sensor, its short name in the bins' names (as the bench's), distance mm
 sensors=("ideal clean 500" "industrial ind 1000" "structured-light sl 800" "tof tof 800")
 for part in cap ipd0 ipd1 ipd8; do
-  case $part in
-    cap) model=builtin:cap; info=(); id=1 ;;
-    *) model=$(printf '%s/obj_%06d.ply' "$models" "${part#ipd}"); info=(--models-info "$models/models_info.json"); id=${part#ipd} ;;
-  esac
+  part_model "$part"
   db=out/sparse/db/$part.bpdb
   [ -f "$db" ] || build/binpose train --model "$model" --out "$db" > /dev/null
   for entry in "${sensors[@]}"; do
@@ -29,11 +25,7 @@ for part in cap ipd0 ipd1 ipd8; do
       bin=out/sparse/cache/$name
       [ -f "$bin/depth.png" ] || build/binpose simulate --model "$model" ${info[@]/--models-info/--model-info} --obj-id "$id" \
         --instances 6 --sensor "$sensor" --distance "$distance" --seed "$seed" --out "$bin" > /dev/null
-      out=out/sparse/$tag/$name
-      scan=(--scene "$bin/depth.png" --intrinsics "$bin/camera.json")
-      "$binpose" detect --model "$db" "${scan[@]}" --out "$out.det.json" > /dev/null
-      build/binpose eval --truth "$bin" --result "$out.det.json" --model "$model" "${info[@]}" --obj-id "$id" --out "$out.eval.json" > /dev/null
-      "$binpose" check --model "$db" "${scan[@]}" --poses "$bin/ground_truth.json" --out "$out.check.json" > /dev/null
+      judge_bin "$bin" "out/sparse/$tag/$name" "$db"
     done
   done
 done

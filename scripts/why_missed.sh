@@ -10,25 +10,16 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 tag=${1:?usage: scripts/why_missed.sh TAG [GLOB]}
 glob=${2:-*-seed*}
-binpose=${BINPOSE:-build/binpose}
-models=../shared/data/ipd_parts/models
+source scripts/judge_bin.sh
 mkdir -p out/why/db "out/why/$tag"
 bins=(out/fresh/cache/$glob)
 [ -d "${bins[0]}" ] || { echo "no bins match out/fresh/cache/$glob: run scripts/fresh_bins.sh first" >&2; exit 2; }
 for bin in "${bins[@]}"; do
   name=$(basename "$bin")
   part=${name%%-*}
-  case $part in
-    cap) model=builtin:cap; info=(); id=1 ;;
-    ipd*) model=$(printf '%s/obj_%06d.ply' "$models" "${part#ipd}"); info=(--models-info "$models/models_info.json"); id=${part#ipd} ;;
-    *) echo "unknown part in $name" >&2; exit 2 ;;
-  esac
+  part_model "$part"
   db=out/why/db/$part.bpdb
-  [ -f "$db" ] || "$binpose" train --model "$model" --out "$db" > /dev/null
-  out=out/why/$tag/$name
-  scan=(--scene "$bin/depth.png" --intrinsics "$bin/camera.json")
-  "$binpose" detect --model "$db" "${scan[@]}" --out "$out.det.json" > /dev/null
-  "$binpose" eval --truth "$bin" --result "$out.det.json" --model "$model" "${info[@]}" --obj-id "$id" --out "$out.eval.json" > /dev/null
-  "$binpose" check --model "$db" "${scan[@]}" --poses "$bin/ground_truth.json" --out "$out.check.json" > /dev/null
+  [ -f "$db" ] || build/binpose train --model "$model" --out "$db" > /dev/null
+  judge_bin "$bin" "out/why/$tag/$name" "$db"
 done
 python3 scripts/why_missed.py "out/why/$tag"
