@@ -452,31 +452,138 @@ bool fitPlane(const Points& points, std::span<const std::uint32_t> which, Plane&
   return true;
 }
 
+namespace {
+
+/// largePlanes's search, one plane a round: one-point RANSAC hypotheses drawn among the points
+/// not tried yet, the best refitted until its inliers stop growing and, with a fit band, moved
+/// to the farthest of parallel surfaces just behind it; its inliers are then tried.
+class PlaneSearch {
+ public:
+  PlaneSearch(const Points& points, const Points& normals, float density, const PlaneParams& params, const LateNormals* late)
+      : points_(points),
+        normals_(normals),
+        params_(params),
+        late_(late),
+        tried_(points.size(), 0),
+        min_count_(static_cast<std::size_t>(std::ceil(params.min_area * density))),
+        min_cos_(std::cos(params.max_angle)),
+        band_(fitBand(params)),
+        rng_(params.seed) {}
+
+  /// The next plane, its extent set, and its inliers (inliers()) tried; false when the points
+  /// left, or the largest plane among them, hold fewer than minCount().
+  bool next(Plane& plane) {
+    left_.clear();
+    for (std::uint32_t i = 0; i < points_.size(); ++i)
+      if (!tried_[i]) left_.push_back(i);
+    if (left_.size() < min_count_) return false;
+    plane = bestDrawn();
+    settle(plane);
+    std::shared_ptr<const PlaneFootprint> extent = onFarthest(plane);
+    if (inliers_.size() < min_count_) return false;  // the largest plane left is too small: done
+    for (const auto i : inliers_) tried_[i] = 1;     // small patches of it stay in the scene, and are not tried again
+    plane.extent = std::move(extent);
+    return true;
+  }
+  [[nodiscard]] const std::vector<std::uint32_t>& inliers() const { return inliers_; }
+  [[nodiscard]] std::size_t minCount() const { return min_count_; }
+
+ private:
+  void finish(std::span<const std::uint32_t> which) const {
+    if (late_ != nullptr) late_->finish(which);
+  }
+  /// A point within the tolerance of the plane, its normal within max_angle of the plane's (a
+  /// pending normal's angle settled from its fit where it can be).
+  bool inlier(std::uint32_t i, const Plane& on) const {
+    if (!(on.distance(points_[i]) <= params_.tolerance)) return false;
+    if (late_ != nullptr && (*late_->pending)[i]) {
+      if (const int aligned = late_->aligned(i, on.normal, min_cos_); aligned >= 0) return aligned == 1;
+      finish(std::span<const std::uint32_t>(&i, 1));
+    }
+    return std::abs(on.normal.dot(normals_[i])) >= min_cos_;
+  }
+  /// The hypotheses drawn in turn, scored side by side on an even sample of at most 1000 of the
+  /// points left, the first of the highest score kept (bestHypothesis).
+  Plane bestDrawn() {
+    probe_.clear();
+    const std::size_t step = std::max<std::size_t>(1, left_.size() / 1000);
+    for (std::size_t k = 0; k < left_.size(); k += step) probe_.push_back(left_[k]);
+    finish(probe_);
+    probe_points_.assign(points_, normals_, probe_.size(), [&](std::size_t k) { return probe_[k]; });
+    drawn_.clear();
+    for (int t = 0; t < params_.trials; ++t) drawn_.push_back(left_[rng_.below(left_.size())]);
+    finish(drawn_);
+    hypotheses_.clear();
+    for (const auto s : drawn_) hypotheses_.push_back({normals_[s], normals_[s].dot(points_[s]), {}});
+    return bestHypothesis(points_, probe_, probe_points_, hypotheses_, params_, min_cos_, counts_);
+  }
+  /// The plane's inliers, then those of their own plane, refitted until they stop growing; with a
+  /// fit band, refitted to those within it: from a hypothesis tilted a little off one of two
+  /// parallel surfaces, the inliers within the tolerance hold stripes of both, and their fit
+  /// settles midway; those within the band lie on one, and each refit widens its stripe.
+  void settle(Plane& best) {
+    for (int fit = 0; fit <= kMostRefits; ++fit) {
+      if (fit > 0) best = refitted(points_, band_ > 0 ? fitted_ : inliers_, best);
+      const std::size_t before = inliers_.size();
+      inliers_.clear();
+      fitted_.clear();
+      for (const auto i : left_)
+        if (inlier(i, best)) {
+          inliers_.push_back(i);
+          if (band_ > 0 && best.distance(points_[i]) <= band_) fitted_.push_back(i);
+        }
+      if (fit > 1 && static_cast<float>(inliers_.size()) <= (1.0f + kRefitGrowth) * static_cast<float>(before)) break;
+    }
+  }
+  /// The inliers' footprint, once per fit: with a fit band, the plane moved to a farther surface
+  /// just behind it (justBehind) and settled again, up to kFartherSteps times.
+  std::shared_ptr<const PlaneFootprint> onFarthest(Plane& best) {
+    std::shared_ptr<const PlaneFootprint> extent;
+    for (int k = 0; inliers_.size() >= min_count_; ++k) {
+      extent = std::make_shared<const PlaneFootprint>(points_, inliers_, best, params_.link, params_.hole);
+      if (band_ == 0 || k == kFartherSteps) break;
+      const std::vector<std::uint32_t> farther =
+          justBehind(points_, left_, best, *extent, params_, [this](std::uint32_t i, const Plane& on) { return inlier(i, on); });
+      if (static_cast<float>(farther.size()) < kFartherLayerShare * static_cast<float>(fitted_.size())) break;
+      best = refitted(points_, farther, best);
+      settle(best);
+    }
+    return extent;
+  }
+
+  const Points& points_;
+  const Points& normals_;
+  const PlaneParams& params_;
+  const LateNormals* late_;
+  std::vector<char> tried_;
+  std::size_t min_count_;
+  float min_cos_, band_;
+  Rng rng_;
+  std::vector<std::uint32_t> left_, probe_, inliers_, fitted_, drawn_, counts_;
+  detail::OrientedLanes probe_points_;  // the points a hypothesis is scored on
+  std::vector<Plane> hypotheses_;
+};
+
+/// The planes found so far, background or not, in turn (at most kOnNoPlane), and the one each
+/// point lies on (kOnNoPlane: none).
+struct FoundPlanes {
+  explicit FoundPlanes(std::size_t points) : on(points, kOnNoPlane) {}
+  void add(const Plane& plane, std::span<const std::uint32_t> inliers) {
+    if (all.size() >= kOnNoPlane) return;
+    for (const auto i : inliers) on[i] = static_cast<std::uint8_t>(all.size());
+    all.push_back(plane);
+  }
+  std::vector<Plane> all;
+  std::vector<std::uint8_t> on;
+};
+
+}  // namespace
+
 std::vector<char> largePlanes(const Points& points, const Points& normals, float density, const PlaneParams& params,
                               std::vector<Plane>* removed, const LateNormals* late) {
   checkPlaneInputs(points, normals, density, params, late);
-  std::vector<char> plane(points.size(), 0), tried(points.size(), 0);
-  const auto min_count = static_cast<std::size_t>(std::ceil(params.min_area * density));
-  const float min_cos = std::cos(params.max_angle);
-  Rng rng(params.seed);
-  std::vector<std::uint32_t> left, probe, inliers, fitted, drawn;
-  const float band = fitBand(params);
-  auto finish = [&](std::span<const std::uint32_t> which) {
-    if (late != nullptr) late->finish(which);
-  };
-  // A point within the tolerance of the plane, its normal within max_angle of the plane's (a
-  // pending normal's angle settled from its fit where it can be).
-  auto inlier = [&](std::uint32_t i, const Plane& on) {
-    if (!(on.distance(points[i]) <= params.tolerance)) return false;
-    if (late != nullptr && (*late->pending)[i]) {
-      if (const int aligned = late->aligned(i, on.normal, min_cos); aligned >= 0) return aligned == 1;
-      finish(std::span<const std::uint32_t>(&i, 1));
-    }
-    return std::abs(on.normal.dot(normals[i])) >= min_cos;
-  };
-  detail::OrientedLanes probe_points;  // the points a RANSAC hypothesis is scored on
-  std::vector<Plane> hypotheses;
-  std::vector<std::uint32_t> counts;
+  PlaneSearch search(points, normals, density, params, late);
+  const std::size_t min_count = search.minCount();
   // A background plane's inliers split into patches (a flood fill, a third of the search's
   // time) while the next rounds look for planes: the next round's points do not depend on it
   // (every inlier is tried, whatever patch it falls in), and rounds' inliers are disjoint.
@@ -484,69 +591,16 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
   background.reserve(static_cast<std::size_t>(std::max(0, params.max_planes)));  // no move under a running task
   tbb::task_group flood;
   std::size_t most_inliers = 0;  // of every plane found, background or not
-  std::vector<Plane> found;      // every plane found, background or not, in turn (at most kOnNoPlane)
-  std::vector<std::uint8_t> found_in(points.size(), kOnNoPlane);
-  for (int round = 0; round < params.max_planes; ++round) {
-    left.clear();
-    for (std::uint32_t i = 0; i < points.size(); ++i)
-      if (!tried[i]) left.push_back(i);
-    if (left.size() < min_count) break;
-    // Hypotheses scored on an even sample of at most 1000 of the points left.
-    probe.clear();
-    const std::size_t step = std::max<std::size_t>(1, left.size() / 1000);
-    for (std::size_t k = 0; k < left.size(); k += step) probe.push_back(left[k]);
-    finish(probe);
-    probe_points.assign(points, normals, probe.size(), [&](std::size_t k) { return probe[k]; });
-    // The hypotheses drawn in turn, scored side by side, the first of the highest score kept.
-    drawn.clear();
-    for (int t = 0; t < params.trials; ++t) drawn.push_back(left[rng.below(left.size())]);
-    finish(drawn);
-    hypotheses.clear();
-    for (const auto s : drawn) hypotheses.push_back({normals[s], normals[s].dot(points[s]), {}});
-    Plane best = bestHypothesis(points, probe, probe_points, hypotheses, params, min_cos, counts);
-    // The hypothesis's inliers, then those of their own plane, refitted until they stop growing;
-    // with a fit band, refitted to those within it: from a hypothesis tilted a little off one
-    // of two parallel surfaces, the inliers within the tolerance hold stripes of both, and their
-    // fit settles midway; those within the band lie on one, and each refit widens its stripe.
-    const auto settle = [&] {
-      for (int fit = 0; fit <= kMostRefits; ++fit) {
-        if (fit > 0) best = refitted(points, band > 0 ? fitted : inliers, best);
-        const std::size_t before = inliers.size();
-        inliers.clear();
-        fitted.clear();
-        for (const auto i : left)
-          if (inlier(i, best)) {
-            inliers.push_back(i);
-            if (band > 0 && best.distance(points[i]) <= band) fitted.push_back(i);
-          }
-        if (fit > 1 && static_cast<float>(inliers.size()) <= (1.0f + kRefitGrowth) * static_cast<float>(before)) break;
-      }
-    };
-    settle();
-    // The inliers' footprint, once per fit: where a farther surface is looked for, then what the
-    // plane hides and its extent as background.
-    std::shared_ptr<const PlaneFootprint> extent;
-    for (int k = 0; inliers.size() >= min_count; ++k) {
-      extent = std::make_shared<const PlaneFootprint>(points, inliers, best, params.link, params.hole);
-      if (band == 0 || k == kFartherSteps) break;
-      const std::vector<std::uint32_t> farther = justBehind(points, left, best, *extent, params, inlier);
-      if (static_cast<float>(farther.size()) < kFartherLayerShare * static_cast<float>(fitted.size())) break;
-      best = refitted(points, farther, best);
-      settle();
-    }
-    if (inliers.size() < min_count) break;  // the largest plane left is too small: done
-    for (const auto i : inliers) tried[i] = 1;  // small patches of it stay in the scene, and are not tried again
+  FoundPlanes found(points.size());
+  Plane best;
+  for (int round = 0; round < params.max_planes && search.next(best); ++round) {
+    const std::vector<std::uint32_t>& inliers = search.inliers();
     most_inliers = std::max(most_inliers, inliers.size());
-    best.extent = std::move(extent);
-    const auto [behind, on_found] = pointsBehind(points, best, *best.extent, params.tolerance, params.viewpoint, found_in, found);
-    if (found.size() < kOnNoPlane) {
-      for (const auto i : inliers) found_in[i] = static_cast<std::uint8_t>(found.size());
-      found.push_back(best);
-    }
-    const float most = params.max_behind * static_cast<float>(points.size());
-    const float most_through = params.max_behind * static_cast<float>(inliers.size());
-    const bool below = static_cast<float>(behind.below) <= most;
-    const bool through = static_cast<float>(behind.seen_through) <= most_through;
+    const auto [behind, on_found] =
+        pointsBehind(points, best, *best.extent, params.tolerance, params.viewpoint, found.on, found.all);
+    found.add(best, inliers);
+    const bool below = static_cast<float>(behind.below) <= params.max_behind * static_cast<float>(points.size());
+    const bool through = static_cast<float>(behind.seen_through) <= params.max_behind * static_cast<float>(inliers.size());
     if (!below && !through) continue;  // not background: a layer of parts
     // The farthest surface, the bin's floor or a table: background for verification even where
     // what the parts leave of it is in pieces each smaller than min_count (those stay in the votes).
@@ -563,7 +617,8 @@ std::vector<char> largePlanes(const Points& points, const Points& normals, float
     flood.run([&, b] { patchesOf(*b, points, params.link, min_count); });
   }
   flood.wait();
-  dropLayersFoundFirst(background, points, params, found_in, found);
+  dropLayersFoundFirst(background, points, params, found.on, found.all);
+  std::vector<char> plane(points.size(), 0);
   const std::vector<Plane> kept = keptOfTheBin(background, most_inliers, points, params, plane);
   if (removed) removed->insert(removed->end(), kept.begin(), kept.end());
   return plane;
