@@ -5,6 +5,7 @@
 #include "stopwatch.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <tbb/blocked_range.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
@@ -14,12 +15,11 @@
 namespace binpose {
 namespace {
 
-/// Sub-groups per batch and thread: enough to keep every thread busy while few of a batch's
-/// outcomes are wasted by an earlier one's removal.
-constexpr std::size_t kGroupsPerThread = 4;
-/// A pending pose from a clique of at least this many times C_n pairs is most often a part
-/// found, whose points are then removed: later sub-groups on its points hold their clique search.
-constexpr std::size_t kHoldingCliqueShare = 2;
+/// Sub-groups per batch, whatever the thread count: each runs on the scene as it stands at its
+/// batch's start, so the batches, and with them the detections, must not follow the cores. Four
+/// per thread on two cores keep both busy while few of a batch's outcomes are wasted by an earlier
+/// one's removal.
+constexpr std::size_t kGroupsPerBatch = 8;
 
 /// Appends the voters (may_vote, or all with `all_voters`) among the points of `group` not yet
 /// removed, when there are at least `min_size` such points (fewer: the sub-group will not run).
@@ -79,9 +79,7 @@ GroupSchedule::GroupSchedule(const ModelDatabase& db, const StageSettings& p, co
       parallel_(db, matcher.symmetry.candidatesPerPoint(p), p.candidate_spacing, matcher.symmetry.votingOrbits(),
                 mildOutliers(p)),
       largest_clique_(groups.size(), 0) {
-  const std::size_t batch = kGroupsPerThread * std::max<std::size_t>(1, threads_);
-  for (std::size_t k = 0; k < batch; ++k) slots_.emplace_back(db, p, matcher.symmetry);
-  prepared_.reset(new std::atomic<bool>[batch]);
+  for (std::size_t k = 0; k < kGroupsPerBatch; ++k) slots_.emplace_back(db, p, matcher.symmetry);
 }
 
 void GroupSchedule::run(const std::vector<std::uint32_t>& order, bool all_voters) {
@@ -104,15 +102,11 @@ void GroupSchedule::runBatch(const std::vector<std::uint32_t>& order, std::size_
   const auto t_work = Clock::now();
   // Isolated: a thread waiting inside a nested loop (graph, ICP) takes up no other sub-group
   // meanwhile, which would hold up its own.
-  for (std::size_t g = next; g < end; ++g) prepared_[g - next].store(false, std::memory_order_relaxed);
   std::atomic<std::size_t> ticket{next};  // the batch's sub-groups started in order
   tbb::parallel_for(std::size_t{0}, threads_, [&](std::size_t) {
     for (std::size_t g; (g = ticket.fetch_add(1)) < end;) {
       Slot& slot = slots_[g - next];
-      const auto hold = [&](const GroupOutcome& o) { return heldBehind(o, g - next); };
-      tbb::this_task_arena::isolate(
-          [&] { matcher_.prepare(groups_[order[g]], state_.removed, slot, all_voters, nullptr, nullptr, hold); });
-      prepared_[g - next].store(true, std::memory_order_release);
+      tbb::this_task_arena::isolate([&] { matcher_.prepare(groups_[order[g]], state_.removed, slot, all_voters); });
     }
   });
   choosePosesToVerify(end - next);
@@ -134,9 +128,6 @@ void GroupSchedule::takeBatch(const std::vector<std::uint32_t>& order, std::size
       std::swap(earlier_, slot.outcome);
       matcher_.run(groups_[order[g]], state_.removed, slot, all_voters, &earlier_, &parallel_);
       times_.work_ms += msSince(t_late);
-    } else if (slot.outcome.held) {  // held, and its points all still there: it runs now
-      matcher_.run(groups_[order[g]], state_.removed, slot, all_voters, nullptr, &parallel_);
-      times_.work_ms += msSince(t_late);
     } else if (slot.outcome.pending && !std::any_of(slot.outcome.poses.begin(), slot.outcome.poses.end(), matcher_.seen)) {
       matcher_.verify(slot);  // deferred, and not the object found meanwhile after all
       times_.work_ms += msSince(t_late);
@@ -147,22 +138,6 @@ void GroupSchedule::takeBatch(const std::vector<std::uint32_t>& order, std::size
     if (!all_voters) largest_clique_[order[g]] = slot.outcome.largest_clique;
     take(slot.outcome);
   }
-}
-
-bool GroupSchedule::heldBehind(const GroupOutcome& o, std::size_t slot) const {
-  // Such a sub-group runs again anyway once the earlier one's part is removed. Which earlier
-  // ones are prepared in time varies from run to run; the outcome does not: a held sub-group
-  // whose points all remain runs when taken, on the same points.
-  if (!p_.verify) return false;
-  for (std::size_t e = 0; e < slot; ++e) {
-    if (!prepared_[e].load(std::memory_order_acquire)) continue;
-    const GroupOutcome& before = slots_[e].outcome;
-    if (before.pending && before.clique.size() >= kHoldingCliqueShare * static_cast<std::size_t>(p_.C_n) &&
-        std::any_of(before.clique.begin(), before.clique.end(),
-                    [&](const Correspondence& c) { return std::binary_search(o.members.begin(), o.members.end(), c.scene); }))
-      return true;
-  }
-  return false;
 }
 
 void GroupSchedule::choosePosesToVerify(std::size_t count) {

@@ -57,8 +57,6 @@ class GroupSchedule {
   void runBatch(const std::vector<std::uint32_t>& order, std::size_t next, std::size_t end, bool all_voters);
   /// The batch's outcomes taken in order; a sub-group some of whose points were removed meanwhile runs again.
   void takeBatch(const std::vector<std::uint32_t>& order, std::size_t next, std::size_t end, bool all_voters);
-  /// True when the clique search of the outcome in `slot` is to wait until it is taken.
-  [[nodiscard]] bool heldBehind(const GroupOutcome& o, std::size_t slot) const;
   /// The slots of the batch whose pending pose is not near one an earlier slot found.
   void choosePosesToVerify(std::size_t count);
   /// One outcome taken: the counts, hypotheses and removals of running the sub-groups in turn.
@@ -76,7 +74,6 @@ class GroupSchedule {
   MatchState& state_;
   std::size_t threads_ = 1;
   std::vector<Slot> slots_;
-  std::unique_ptr<std::atomic<bool>[]> prepared_;
   GroupOutcome earlier_;
   ParallelVoter parallel_;  ///< for the sub-groups run again on their own
   std::vector<std::uint32_t> voters_;

@@ -20,7 +20,7 @@ void reset(GroupOutcome& out, bool all_voters) {
   out.poses.clear();
   out.other_poses.clear();
   out.other.reset();
-  out.ran = out.screened_out = out.pending = out.refound = out.held = out.reflected = false;
+  out.ran = out.screened_out = out.pending = out.refound = out.reflected = false;
   out.path.clear();
   out.all_voters = all_voters;
   out.largest_clique = 0;
@@ -54,8 +54,7 @@ std::vector<Pose> turnedOver(const Pose& pose, const RevolutionAxis& axis, const
 }  // namespace
 
 bool Matcher::prepare(std::span<const std::uint32_t> group, const std::vector<char>& removed, Slot& s, bool all_voters,
-                      const GroupOutcome* earlier, ParallelVoter* parallel,
-                      const std::function<bool(const GroupOutcome&)>& hold) const {
+                      const GroupOutcome* earlier, ParallelVoter* parallel) const {
   GroupOutcome& out = s.outcome;
   reset(out, all_voters);
   for (const auto i : group)
@@ -66,10 +65,6 @@ bool Matcher::prepare(std::span<const std::uint32_t> group, const std::vector<ch
   if (!collectVotes(s, all_voters, parallel)) return false;
   const auto t_match = Clock::now();
   out.vote_ms = msSince(t_vote);
-  if (hold && hold(out)) {  // its clique waits until the outcome is taken
-    out.held = true;
-    return false;
-  }
   const bool matched = match(s);
   out.match_ms = msSince(t_match);
   if (!matched) return false;

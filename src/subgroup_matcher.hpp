@@ -45,7 +45,6 @@ struct GroupOutcome {
                                                     ///< hypothesis when it scores more (GroupSchedule::take)
   bool screened_out = false;                        ///< the pose failed the pre-screen
   bool pending = false;                             ///< a pose not seen when it ran, not verified yet (Matcher::verify)
-  bool held = false;                                ///< its clique not searched yet (run when taken)
   std::vector<Pose> path;                           ///< ICP's pose after each step
   bool refound = false;                             ///< ICP came to an object already found (and stopped there)
   bool all_voters = false;                          ///< every member's candidates taken, not only the voters'
@@ -100,10 +99,9 @@ struct Matcher {
   /// pairs alone: when `earlier` (a run of the same sub-group with more points) verified the
   /// same clique, its verdict is taken instead. `parallel`: votes with it instead of the slot's
   /// voter, on all cores. `all_voters`: with local votes, the candidates of every member, not
-  /// only of the voters of voter_spacing. `hold`: true when the clique search is to wait.
+  /// only of the voters of voter_spacing.
   bool prepare(std::span<const std::uint32_t> group, const std::vector<char>& removed, Slot& s, bool all_voters,
-               const GroupOutcome* earlier = nullptr, ParallelVoter* parallel = nullptr,
-               const std::function<bool(const GroupOutcome&)>& hold = {}) const;
+               const GroupOutcome* earlier = nullptr, ParallelVoter* parallel = nullptr) const;
 
   /// Pre-screen, ICP and score of a pending outcome's pose.
   void verify(Slot& s) const;

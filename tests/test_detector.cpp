@@ -211,14 +211,12 @@ TEST(Detector, SameResultWhateverTheThreadCount) {
   }
 }
 
-// Sub-groups run side by side in batches whose size follows the thread count; a sub-group
-// that a detection of its batch took points from runs again, and a pose near one found earlier
-// in the batch is verified only when taken, if still needed, and a clique search on points an
-// earlier pose of the batch holds waits until taken. A simulated bin of sixteen caps makes all
-// of these happen (12 poses wait, one is verified late; searches wait, most then run late) and
-// change what those sub-groups find: the counts and poses must still be those of one thread,
-// the default's second pass (retry_all_voters) included. Skipping a late verification or a late
-// search fails it.
+// Sub-groups run side by side in batches of eight, whatever the thread count; a sub-group that
+// a detection of its batch took points from runs again, and a pose near one found earlier in
+// the batch is verified only when taken, if still needed. A simulated bin of sixteen caps makes
+// these happen (12 poses wait, one is verified late) and change what those sub-groups find: the
+// counts and poses must still be those of one thread, the default's second pass
+// (retry_all_voters) included. Skipping a late verification fails it.
 namespace {
 
 /// A simulated bin of sixteen built-in caps (seed 7) and the cap's database.
