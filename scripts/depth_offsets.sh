@@ -12,13 +12,12 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 tag=${1:?usage: scripts/depth_offsets.sh TAG}
 source scripts/judge_bin.sh
-mkdir -p out/offsets/cache out/offsets/db "out/offsets/$tag"
+mkdir -p out/offsets/cache "out/offsets/$tag"
 # sensor, its short name in the bins' names (as the bench's), distance mm, image size and focal length
 sensors=("ideal clean 500 640 480 550" "industrial ind 1000 1280 960 1100")
 for part in cap ipd0 ipd1 ipd8; do
   part_model "$part"
-  db=out/offsets/db/$part.bpdb
-  [ -f "$db" ] || build/binpose train --model "$model" --out "$db" > /dev/null
+  part_db out/offsets/db
   for entry in "${sensors[@]}"; do
     read -r sensor short distance width height fx <<< "$entry"
     for seed in 601 602 603; do
@@ -28,9 +27,7 @@ for part in cap ipd0 ipd1 ipd8; do
         [ -f "$bin/depth.png" ] || build/binpose simulate --model "$model" ${info[@]/--models-info/--model-info} --obj-id "$id" \
           --sensor "$sensor" --distance $((distance + offset)) --width "$width" --height "$height" --fx "$fx" --seed "$seed" \
           --out "$bin" > /dev/null
-        out=out/offsets/$tag/$name
-        "${BINPOSE:-build/binpose}" detect --model "$db" --scene "$bin/depth.png" --intrinsics "$bin/camera.json" --out "$out.det.json" > /dev/null
-        build/binpose eval --truth "$bin" --result "$out.det.json" --model "$model" "${info[@]}" --obj-id "$id" --out "$out.eval.json" > /dev/null
+        find_in_bin "$bin" "out/offsets/$tag/$name" "$db"
       done
     done
   done

@@ -11,13 +11,12 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 tag=${1:?usage: scripts/sparse_bins.sh TAG}
 source scripts/judge_bin.sh
-mkdir -p out/sparse/cache out/sparse/db "out/sparse/$tag"
+mkdir -p out/sparse/cache "out/sparse/$tag"
 # sensor, its short name in the bins' names (as the bench's), distance mm
 sensors=("ideal clean 500" "industrial ind 1000" "structured-light sl 800" "tof tof 800")
 for part in cap ipd0 ipd1 ipd8; do
   part_model "$part"
-  db=out/sparse/db/$part.bpdb
-  [ -f "$db" ] || build/binpose train --model "$model" --out "$db" > /dev/null
+  part_db out/sparse/db
   for entry in "${sensors[@]}"; do
     read -r sensor short distance <<< "$entry"
     for seed in 501 502 503 504 505 506; do

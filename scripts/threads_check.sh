@@ -9,15 +9,14 @@ cd "$(dirname "$0")/.."
 source scripts/judge_bin.sh
 bins=(out/fresh/cache/*/)
 [ -d "${bins[0]}" ] || { echo "no bins in out/fresh/cache: run scripts/fresh_bins.sh first" >&2; exit 2; }
-mkdir -p out/threads/db out/threads/run
+mkdir -p out/threads/run
 differ=0
 for bin in "${bins[@]}"; do
   bin=${bin%/}
   name=$(basename "$bin")
   part=${name%%-*}
   part_model "$part"
-  db=out/threads/db/$part.bpdb
-  [ -f "$db" ] || build/binpose train --model "$model" --out "$db" > /dev/null
+  part_db out/threads/db
   for threads in 1 2 3; do
     "${BINPOSE:-build/binpose}" detect --threads "$threads" --model "$db" --scene "$bin/depth.png" \
       --intrinsics "$bin/camera.json" --out "out/threads/run/$threads.json" > /dev/null

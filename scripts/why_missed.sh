@@ -11,15 +11,14 @@ cd "$(dirname "$0")/.."
 tag=${1:?usage: scripts/why_missed.sh TAG [GLOB]}
 glob=${2:-*-seed*}
 source scripts/judge_bin.sh
-mkdir -p out/why/db "out/why/$tag"
+mkdir -p "out/why/$tag"
 bins=(out/fresh/cache/$glob)
 [ -d "${bins[0]}" ] || { echo "no bins match out/fresh/cache/$glob: run scripts/fresh_bins.sh first" >&2; exit 2; }
 for bin in "${bins[@]}"; do
   name=$(basename "$bin")
   part=${name%%-*}
   part_model "$part"
-  db=out/why/db/$part.bpdb
-  [ -f "$db" ] || build/binpose train --model "$model" --out "$db" > /dev/null
+  part_db out/why/db
   judge_bin "$bin" "out/why/$tag/$name" "$db"
 done
 python3 scripts/why_missed.py "out/why/$tag"
