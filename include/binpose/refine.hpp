@@ -216,10 +216,10 @@ class SceneEvidence {
   /// behind `face` where the scan shows that plane in front of them (Sinking::sunk), as
   /// evaluate() counts a point inside a background plane; those clearly behind the part's own
   /// front are not counted (the plane in front of them may be the part's own face). `face`: the
-  /// plane of the scan points
-  /// that support the pose, when they lie on one. A part cannot lie inside a surface that goes on
-  /// from its own face: a pose that lays one face on a patch of a table, its body sunk into it,
-  /// which a warped or noisy table (no background plane there) does not give away otherwise.
+  /// plane of the scan points that support the pose, when they lie on one. A part cannot lie
+  /// inside a surface that goes on from its own face: a pose that lays one face on a patch of a
+  /// table, its body sunk into it, which a warped or noisy table (no background plane there) does
+  /// not give away otherwise.
   [[nodiscard]] Sinking sunkBehind(const Plane& face, const Pose& pose, const PreparedModel& model, float tolerance,
                                    float model_spacing) const;
   /// The scan beyond the posed model's outline (OutlineEvidence; src/outline.cpp): a wrong pose
