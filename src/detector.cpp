@@ -187,7 +187,10 @@ Detector::Detector(const ModelDatabase& db, const StageSettings& settings)
                                              kLeastFaceShare * kLeastFaceShare * model.diameter * model.diameter,
                                              orbits() != nullptr ? &orbits()->axis.direction : nullptr)
                                  : std::vector<ModelFace>{});
-  if (settings_->reseat_weak && settings_->flip_weak) flips_ = nearFlips(icp_model_.points(), icp_model_.normals(), *shape_);
+  if (settings_->reseat_weak && settings_->flip_weak) {
+    flips_ = nearFlips(icp_model_.points(), icp_model_.normals(), *shape_);
+    quiet_flips_ = withFaceFlips(flips_, *faces_, *shape_);
+  }
 }
 
 Detector::~Detector() = default;
@@ -235,10 +238,11 @@ DetectionResult Detector::detect(const PointCloud& input) const {
   if (p.verify && p.face_hypotheses && !state.enough) addFaceDetections(*faces_, matcher, *shape_, state);
   shareTimes(schedule.times(), local.setup_ms, msSince(t_match), result.timing);
 
-  if (p.refine && p.verify && p.reseat_weak && prepared.noise.sigma >= kPolishNoise) {
+  const bool quiet = prepared.noise.sigma < kPolishNoise;
+  if (p.refine && p.verify && p.reseat_weak && (!quiet || !quiet_flips_.empty())) {
     const auto t_reseat = Clock::now();  // ICP's minimum a few degrees off, or the part turned over
     state.hypotheses = distinctObjects(std::move(state.hypotheses), scan.size(), *shape_);
-    reseatWeak(state.hypotheses, matcher, *shape_, flips_);
+    reseatWeak(state.hypotheses, matcher, *shape_, quiet ? quiet_flips_ : flips_, quiet);
     result.timing.refine_ms += msSince(t_reseat);
   }
   const auto t_suppress = Clock::now();  // best first, one detection per object
@@ -249,7 +253,7 @@ DetectionResult Detector::detect(const PointCloud& input) const {
   if (p.max_instances > 0 && static_cast<int>(result.detections.size()) > p.max_instances && p.verify)
     result.detections.resize(static_cast<std::size_t>(p.max_instances));
   result.timing.match_ms += msSince(t_suppress);
-  if (p.refine && p.verify && !result.detections.empty() && prepared.noise.sigma >= kPolishNoise) {
+  if (p.refine && p.verify && !result.detections.empty() && !quiet) {
     const auto t_polish = Clock::now();
     polishAll(result.detections, icp_model_, scan, prepared);
     if (p.slide_faces) slideAlongFaces(result.detections, matcher);  // what ICP cannot fix: a flat face's place along it

@@ -79,6 +79,7 @@ struct PlaneFit {
   Vec3 centre = Vec3::Zero(), normal = Vec3::Zero();
   float rms = 0;
   float spread[2] = {0, 0};  ///< RMS distance from the centre along the plane's two principal axes, largest first
+  Vec3 axes[2] = {Vec3::UnitX(), Vec3::UnitY()};  ///< those axes (unit), largest first
 };
 
 PlaneFit fitPlane(const Points& points, const std::vector<std::uint32_t>& members, const Vec3& towards) {
@@ -99,6 +100,8 @@ PlaneFit fitPlane(const Points& points, const std::vector<std::uint32_t>& member
   fit.rms = rms(0);
   fit.spread[0] = rms(2);
   fit.spread[1] = rms(1);
+  fit.axes[0] = solver.eigenvectors().col(2).cast<float>().normalized();
+  fit.axes[1] = solver.eigenvectors().col(1).cast<float>().normalized();
   return fit;
 }
 
@@ -451,7 +454,8 @@ std::vector<ModelFace> flatFaces(const Points& points, const Points& normals, fl
     const PlaneFit plane = fitPlane(points, members, mean);
     if (plane.rms > kFaceFlatness * sample_radius) continue;  // a gently curved surface, not a face
     const bool about_axis = revolution_axis != nullptr && std::abs(revolution_axis->dot(plane.normal)) >= kAxisCosine;
-    faces.push_back({plane.normal, plane.centre, area, !about_axis, {plane.spread[0], plane.spread[1]}});
+    faces.push_back(
+        {plane.normal, plane.centre, area, !about_axis, {plane.spread[0], plane.spread[1]}, {plane.axes[0], plane.axes[1]}});
   }
   return faces;
 }

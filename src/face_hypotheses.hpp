@@ -20,6 +20,7 @@ struct ModelFace {
   float area = 0; ///< mm^2
   bool turns = true;  ///< false when the part's axis of revolution lies along the normal: every turn about it is the same pose
   float spread[2] = {0, 0};  ///< RMS distance of its points from the centre along its principal axes, largest first, mm
+  Vec3 axes[2] = {Vec3::UnitX(), Vec3::UnitY()};  ///< those principal axes (unit, in its plane), largest first
 };
 
 /// The model's flat faces of at least `min_area` mm^2: its points grown into regions of one plane

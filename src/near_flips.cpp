@@ -1,6 +1,8 @@
 // A part's near-symmetric half turns (near_flips.hpp).
 #include "near_flips.hpp"
 
+#include "face_hypotheses.hpp"
+
 #include <binpose/point_grid.hpp>
 
 #include <tbb/parallel_for.h>
@@ -112,6 +114,25 @@ std::vector<Pose> nearFlips(const Points& points, const Points& normals, const M
         std::none_of(flips.begin(), flips.end(), [&](const Pose& f) { return shape.samePose(f, turn, kDistinctShare); }))
       flips.push_back(turn);
   return flips;
+}
+
+std::vector<Pose> withFaceFlips(std::vector<Pose> near, const std::vector<ModelFace>& faces, const ModelShape& shape) {
+  std::vector<Pose> turns;
+  for (const ModelFace& face : faces)
+    for (const Vec3& axis : face.axes) {
+      const Pose turn = turnAbout(axis, static_cast<float>(M_PI), face.centre);
+      const auto same =
+          std::find_if(turns.begin(), turns.end(), [&](const Pose& t) { return shape.samePose(t, turn, kDistinctShare); });
+      if (same == turns.end())
+        turns.push_back(turn);
+      else  // the other side of a plate: half turns about parallel lines, whose mean is the one midway
+        same->translation() = 0.5f * (same->translation() + turn.translation());
+    }
+  std::erase_if(near, [&](const Pose& n) {
+    return std::any_of(turns.begin(), turns.end(), [&](const Pose& t) { return shape.samePose(t, n, kDistinctShare); });
+  });
+  near.insert(near.end(), turns.begin(), turns.end());
+  return near;
 }
 
 }  // namespace binpose

@@ -20,4 +20,15 @@ namespace binpose {
 /// matched, `shape`) and is not another of those kept.
 std::vector<Pose> nearFlips(const Points& points, const Points& normals, const ModelShape& shape);
 
+struct ModelFace;
+
+/// The half turns that lay one of the model's flat `faces` on itself, turned over, about each of
+/// its two principal axes through its centre: the rest of the part then lies on that face's other
+/// side. A copy that shows the sensor one large face (a bracket's plate seen face-on, the other
+/// plate behind it) shows little of which side its body lies on, and a clique may lay the part
+/// over its mirror image across that face. Two faces of one plate (its sides, a thickness apart)
+/// give one turn, about the line midway. Half turns the same as `near` (nearFlips) give way to
+/// these, which lay the face exactly; the rest of `near` come first.
+std::vector<Pose> withFaceFlips(std::vector<Pose> near, const std::vector<ModelFace>& faces, const ModelShape& shape);
+
 }  // namespace binpose

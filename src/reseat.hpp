@@ -1,5 +1,5 @@
 #pragma once
-// Beyond the thesis: a weak detection on a noisy scan tried again from poses turned a little,
+// Beyond the thesis: a weak detection tried again from poses turned a little (on a noisy scan),
 // and from the part turned over.
 #include "model_shape.hpp"
 #include "subgroup_matcher.hpp"
@@ -15,9 +15,10 @@ namespace binpose {
 /// those poses where it scores clearly more, stands (Matcher::stands) and has not moved off its
 /// place. Each scoring under a higher score is then tried the same way from its pose turned by
 /// the part's near-symmetric half turns, `flips` (nearFlips), held near the turned start's place
-/// instead, and when it takes one, turned a little again. In parallel, each its own: the result
-/// is the same whatever the threads.
+/// instead, and when it takes one, turned a little again. On a `quiet` scan (one not polished)
+/// the weak hypotheses are only tried turned over, `flips` being those of withFaceFlips. In
+/// parallel, each its own: the result is the same whatever the threads.
 void reseatWeak(std::vector<Hypothesis>& hypotheses, const Matcher& matcher, const ModelShape& shape,
-                const std::vector<Pose>& flips);
+                const std::vector<Pose>& flips, bool quiet);
 
 }  // namespace binpose

@@ -101,7 +101,9 @@ struct StageSettings : DetectionParams {
   /// With reseat_weak, a detection scoring under 0.8 is also tried turned over by the part's
   /// near-symmetric half turns (src/near_flips.cpp, found when the detector is made), refined,
   /// and takes the best that scores 0.05 more and stands: a noisy scan often leaves the side
-  /// that tells the part from its turned self unresolved.
+  /// that tells the part from its turned self unresolved. On a quiet scan too, with the half
+  /// turns that lay one of the part's flat faces on itself (a bracket seen by one plate, its body
+  /// behind it on one side or the other).
   bool flip_weak = true;
   /// A body of revolution's verified pose that does not stand (a cap upside down, its inside
   /// laid on the copy's top) is tried turned end over end, at 9 heights along its axis; the best

@@ -123,6 +123,7 @@ class Detector {
   std::unique_ptr<const ModelShape> shape_;  ///< removal, same-pose and overlap tests
   std::unique_ptr<const std::vector<ModelFace>> faces_;  ///< the model's flat faces (face_hypotheses)
   std::vector<Pose> flips_;  ///< the model's near-symmetric half turns (reseat_weak)
+  std::vector<Pose> quiet_flips_;  ///< ... with those laying a flat face on itself, tried on a quiet scan
 };
 
 }  // namespace binpose
