@@ -186,8 +186,9 @@ bool flipOver(Hypothesis& h, const Matcher& m, const ModelShape& shape, const st
 
 void reseatWeak(std::vector<Hypothesis>& hypotheses, const Matcher& matcher, const ModelShape& shape,
                 const std::vector<Pose>& flips, bool quiet) {
-  std::vector<Detection> placed;  // as each lies before any moves: the same whatever the threads
-  for (const Hypothesis& h : hypotheses) placed.push_back(h.detection);
+  std::vector<Detection> placed;  // on a quiet scan, as each lies before any moves: the same whatever the threads
+  if (quiet)
+    for (const Hypothesis& h : hypotheses) placed.push_back(h.detection);
   tbb::parallel_for(std::size_t{0}, hypotheses.size(), [&](std::size_t i) {
     Hypothesis& h = hypotheses[i];
     const auto taken = [&](const Pose& pose, float score) {
