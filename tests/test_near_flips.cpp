@@ -17,10 +17,11 @@
 namespace binpose {
 namespace {
 
-std::vector<Pose> flipsOf(const OrientedModel& model) {
-  const ModelShape shape(model.points, model.diameter, 0.05f * model.diameter, model.points, nullptr, nullptr);
-  return nearFlips(model.points, model.normals, shape);
+ModelShape shapeOf(const OrientedModel& model) {
+  return ModelShape(model.points, model.diameter, 0.05f * model.diameter, model.points, nullptr, nullptr);
 }
+
+std::vector<Pose> flipsOf(const OrientedModel& model) { return nearFlips(model.points, model.normals, shapeOf(model)); }
 
 /// True when `turn` is a half turn (within 3 degrees) about a line along `axis` (within
 /// `degrees`) through `point` (within `within` mm).
@@ -63,11 +64,11 @@ TEST(NearFlips, IpdPartOneTurnsOntoItselfAboutItsDiagonal) {
 TEST(NearFlips, IpdPartOneTurnsOverEachOfItsPlates) {
   REQUIRE_DATA("ipd_parts/models/obj_000001.ply");
   const OrientedModel part = prepareModel(readMesh(test::dataPath("ipd_parts/models/obj_000001.ply")), ModelParams{});
-  const ModelShape shape(part.points, part.diameter, 0.05f * part.diameter, part.points, nullptr, nullptr);
+  const ModelShape shape = shapeOf(part);
   const float per_point = static_cast<float>(part.area / static_cast<double>(part.points.size()));
   const std::vector<ModelFace> faces =
       flatFaces(part.points, part.normals, part.sample_radius, per_point, 0.0625f * part.diameter * part.diameter);
-  const std::vector<Pose> near = nearFlips(part.points, part.normals, shape);
+  const std::vector<Pose> near = flipsOf(part);
   const std::vector<Pose> turns = withFaceFlips(near, faces, shape);
   const auto has = [](const std::vector<Pose>& set, const Vec3& axis, const Vec3& point) {
     return std::any_of(set.begin(), set.end(), [&](const Pose& t) { return halfTurnAbout(t, axis, point, 5.0f, 1.5f); });
