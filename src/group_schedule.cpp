@@ -103,7 +103,7 @@ void GroupSchedule::runBatch(const std::vector<std::uint32_t>& order, std::size_
   // Isolated: a thread waiting inside a nested loop (graph, ICP) takes up no other sub-group
   // meanwhile, which would hold up its own.
   std::atomic<std::size_t> ticket{next};  // the batch's sub-groups started in order
-  tbb::parallel_for(std::size_t{0}, threads_, [&](std::size_t) {
+  tbb::parallel_for(std::size_t{0}, std::min(threads_, end - next), [&](std::size_t) {
     for (std::size_t g; (g = ticket.fetch_add(1)) < end;) {
       Slot& slot = slots_[g - next];
       tbb::this_task_arena::isolate([&] { matcher_.prepare(groups_[order[g]], state_.removed, slot, all_voters); });
