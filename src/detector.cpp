@@ -7,6 +7,7 @@
 #include "face_slide.hpp"
 #include "flying_pixels.hpp"
 #include "group_schedule.hpp"
+#include "left_points.hpp"
 #include "local_votes.hpp"
 #include "model_shape.hpp"
 #include "near_flips.hpp"
@@ -42,6 +43,8 @@ constexpr float kFarthestCoordinate = 1e8f;
 /// the structured-light bins (1.3 mm) the model-to-scan ICP's median centroid error is 1.35 mm
 /// and polishing halves it; on the industrial ones (0.2 mm) it is 0.14 mm, and 0.06 mm on the
 /// clean ones, where polishing gains a few hundredths of a millimetre for a tenth more time.
+/// Under it a scan is quiet: weak poses are only turned over (reseat.hpp), and the points left
+/// vote again (left_points.hpp), which costs more on a noisier scan, where less is explained.
 constexpr float kPolishNoise = 0.5f;
 
 /// Error naming the first point of `scan` beyond kFarthestCoordinate (non-finite ones are skipped).
@@ -235,10 +238,13 @@ DetectionResult Detector::detect(const PointCloud& input) const {
     result.subgroups_retried = order.size();
     schedule.run(order, true);
   }
-  if (p.verify && p.face_hypotheses && !state.enough) addFaceDetections(*faces_, matcher, *shape_, state);
-  shareTimes(schedule.times(), local.setup_ms, msSince(t_match), result.timing);
-
+  ScheduleTimes times = schedule.times();
   const bool quiet = prepared.noise.sigma < kPolishNoise;
+  if (p.revote_left && quiet && local.voter && !state.enough)  // where nothing was found, votes among the points left
+    times += revoteLeftPoints(db_, p, *shape_, *symmetry_, scene, matcher, groups, local.may_vote, state);
+  if (p.verify && p.face_hypotheses && !state.enough) addFaceDetections(*faces_, matcher, *shape_, state);
+  shareTimes(times, local.setup_ms, msSince(t_match), result.timing);
+
   if (p.refine && p.verify && p.reseat_weak && (!quiet || !quiet_flips_.empty())) {
     const auto t_reseat = Clock::now();  // ICP's minimum a few degrees off, or the part turned over
     state.hypotheses = distinctObjects(std::move(state.hypotheses), scan.size(), *shape_);

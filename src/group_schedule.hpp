@@ -36,6 +36,16 @@ struct ScheduleTimes {
   double local_vote_ms = 0;                         ///< the batches' local votes
   double work_ms = 0;                               ///< wall time of the sub-groups' work
   double vote_ms = 0, match_ms = 0, refine_ms = 0;  ///< the threads' time in each stage, summed
+
+  /// Another run's times added (the points left's pass, left_points.hpp).
+  ScheduleTimes& operator+=(const ScheduleTimes& o) {
+    local_vote_ms += o.local_vote_ms;
+    work_ms += o.work_ms;
+    vote_ms += o.vote_ms;
+    match_ms += o.match_ms;
+    refine_ms += o.refine_ms;
+    return *this;
+  }
 };
 
 class GroupSchedule {

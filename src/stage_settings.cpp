@@ -24,6 +24,7 @@ StageSettings thesisStages() {
   s.voter_spacing = 0.0f;
   s.partner_spacing = 0.0f;
   s.retry_all_voters = false;
+  s.revote_left = false;
   s.pair_angle_tolerance = 0.0f;
   s.mirror_retries = 0;
   s.reflect_mirrors = false;

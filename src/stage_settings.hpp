@@ -70,6 +70,10 @@ struct StageSettings : DetectionParams {
   bool retry_all_voters = true;
   int retry_min_clique = 3;
   float retry_min_score = 0.4f;
+  /// On a quiet scan, after both passes, the sub-groups mostly made of points left unexplained
+  /// run again, those points voting among themselves alone; their detections must score
+  /// retry_min_score (left_points.hpp).
+  bool revote_left = true;
   float grazing_angle = 80.0f;    ///< model points seen at more than this to the line of sight are grazing, degrees
 
   // --- clique and pose (4.5-4.6) --------------------------------------------------------------

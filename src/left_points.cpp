@@ -1,0 +1,101 @@
+// Beyond the thesis: the points both passes left unexplained vote again among themselves.
+#include "left_points.hpp"
+
+#include "removal.hpp"
+#include "stopwatch.hpp"
+
+#include <algorithm>
+#include <utility>
+
+namespace binpose {
+namespace {
+
+/// A sub-group runs again when at least this share of its points is left: around the copies
+/// found most sub-groups are mostly explained, and running them again costs a clique search
+/// each for nothing. On the quiet fresh and depth-offset bins, half finds as many copies as
+/// running every sub-group with C_n points left, at 0-6 ms more a bin against 3-20 ms
+/// (docs/design.md, The points left vote again).
+constexpr float kLeftShare = 0.5f;
+
+/// The points removed, and those within sigma_dist of a detection scoring explain_score but
+/// too little to remove its points (removal_score): the pass looks where nothing was found.
+std::vector<char> explainedPoints(const Points& scene, const MatchState& state, const StageSettings& p, const ModelShape& shape) {
+  std::vector<char> explained = state.removed;
+  for (const Hypothesis& h : state.hypotheses)
+    if (h.detection.score >= p.explain_score && h.detection.score < p.removal_score)
+      removeExplained(scene, h.detection.pose, shape, p.sigma_dist, explained);
+  return explained;
+}
+
+/// The points left, one per `spacing` cube as the first votes' partners (all with 0).
+std::vector<std::uint32_t> partnersLeft(const Points& points, const std::vector<char>& explained, float spacing) {
+  std::vector<std::uint32_t> left;
+  Points at;
+  for (std::uint32_t i = 0; i < points.size(); ++i)
+    if (!explained[i]) {
+      left.push_back(i);
+      at.push_back(points[i]);
+    }
+  if (!(spacing > 0)) return left;
+  std::vector<std::uint32_t> partners;
+  for (const auto k : voxelSubsample(at, spacing)) partners.push_back(left[k]);
+  return partners;
+}
+
+/// The sub-groups with at least `min_size` points left, and at least kLeftShare of theirs.
+std::vector<std::uint32_t> groupsMostlyLeft(const std::vector<std::vector<std::uint32_t>>& groups,
+                                            const std::vector<char>& explained, std::size_t min_size) {
+  std::vector<std::uint32_t> order;
+  for (std::uint32_t g = 0; g < groups.size(); ++g) {
+    const auto left = static_cast<std::size_t>(
+        std::count_if(groups[g].begin(), groups[g].end(), [&](std::uint32_t i) { return explained[i] == 0; }));
+    if (left >= min_size && static_cast<float>(left) >= kLeftShare * static_cast<float>(groups[g].size())) order.push_back(g);
+  }
+  return order;
+}
+
+/// The detections the pass added from `first` (found poses from `first_found`) under `least`
+/// dropped, as in the second pass (retry_min_score): a late look at crowded points finds more
+/// of the right copies' neighbours' pieces than of the copies themselves below it.
+void dropWeakAdded(MatchState& state, std::size_t first, std::size_t first_found, const StageSettings& p, float least) {
+  std::vector<Hypothesis> added(std::make_move_iterator(state.hypotheses.begin() + static_cast<std::ptrdiff_t>(first)),
+                                std::make_move_iterator(state.hypotheses.end()));
+  state.hypotheses.resize(first);
+  state.found.resize(first_found);
+  for (Hypothesis& h : added) {
+    const float score = h.detection.score;
+    if (score < least) continue;
+    if (score >= p.removal_score || score >= p.explain_score) state.found.push_back(h.detection.pose);  // as accept()
+    state.hypotheses.push_back(std::move(h));
+  }
+}
+
+}  // namespace
+
+ScheduleTimes revoteLeftPoints(const ModelDatabase& db, const StageSettings& p, const ModelShape& shape,
+                               const PartSymmetry& symmetry, const PreparedScene& scene, const Matcher& matcher,
+                               const std::vector<std::vector<std::uint32_t>>& groups, const std::vector<char>& may_vote,
+                               MatchState& state) {
+  const auto t0 = Clock::now();
+  const std::vector<char> explained = explainedPoints(scene.points, state, p, shape);
+  const std::vector<std::uint32_t> order = groupsMostlyLeft(groups, explained, static_cast<std::size_t>(p.C_n));
+  if (order.empty()) return {};
+  NeighbourhoodVoter voter(db, scene.points, scene.normals, p.vote_radius, symmetry.candidatesPerPoint(p),
+                           partnersLeft(scene.points, explained, p.partner_spacing), p.candidate_spacing, symmetry.votingOrbits(),
+                           mildOutliers(p));
+  const double setup_ms = msSince(t0);
+  Matcher again = matcher;
+  again.local = &voter;
+  // The weak detections' points count as removed while the pass runs; what it removes stays so.
+  const std::vector<char> removed = std::exchange(state.removed, explained);
+  const std::size_t first = state.hypotheses.size(), first_found = state.found.size();
+  GroupSchedule schedule(db, p, shape, again, groups, &voter, may_vote, state);
+  schedule.run(order, false);
+  for (std::size_t i = 0; i < removed.size(); ++i) state.removed[i] = removed[i] || (state.removed[i] && !explained[i]);
+  dropWeakAdded(state, first, first_found, p, std::max(p.min_score, p.retry_min_score));
+  ScheduleTimes times = schedule.times();
+  times.local_vote_ms += setup_ms;
+  return times;
+}
+
+}  // namespace binpose
