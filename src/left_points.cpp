@@ -1,6 +1,7 @@
 // Beyond the thesis: the points both passes left unexplained vote again among themselves.
 #include "left_points.hpp"
 
+#include "local_votes.hpp"
 #include "removal.hpp"
 #include "stopwatch.hpp"
 
@@ -27,21 +28,6 @@ std::vector<char> explainedPoints(const Points& scene, const MatchState& state, 
   return explained;
 }
 
-/// The points left, one per `spacing` cube as the first votes' partners (all with 0).
-std::vector<std::uint32_t> partnersLeft(const Points& points, const std::vector<char>& explained, float spacing) {
-  std::vector<std::uint32_t> left;
-  Points at;
-  for (std::uint32_t i = 0; i < points.size(); ++i)
-    if (!explained[i]) {
-      left.push_back(i);
-      at.push_back(points[i]);
-    }
-  if (!(spacing > 0)) return left;
-  std::vector<std::uint32_t> partners;
-  for (const auto k : voxelSubsample(at, spacing)) partners.push_back(left[k]);
-  return partners;
-}
-
 /// The sub-groups with at least `min_size` points left, and at least kLeftShare of theirs.
 std::vector<std::uint32_t> groupsMostlyLeft(const std::vector<std::vector<std::uint32_t>>& groups,
                                             const std::vector<char>& explained, std::size_t min_size) {
@@ -57,17 +43,16 @@ std::vector<std::uint32_t> groupsMostlyLeft(const std::vector<std::vector<std::u
 /// The detections the pass added from `first` (found poses from `first_found`) under `least`
 /// dropped, as in the second pass (retry_min_score): a late look at crowded points finds more
 /// of the right copies' neighbours' pieces than of the copies themselves below it.
-void dropWeakAdded(MatchState& state, std::size_t first, std::size_t first_found, const StageSettings& p, float least) {
-  std::vector<Hypothesis> added(std::make_move_iterator(state.hypotheses.begin() + static_cast<std::ptrdiff_t>(first)),
-                                std::make_move_iterator(state.hypotheses.end()));
-  state.hypotheses.resize(first);
-  state.found.resize(first_found);
-  for (Hypothesis& h : added) {
-    const float score = h.detection.score;
-    if (score < least) continue;
-    if (score >= p.removal_score || score >= p.explain_score) state.found.push_back(h.detection.pose);  // as accept()
-    state.hypotheses.push_back(std::move(h));
-  }
+void dropWeakAdded(MatchState& state, std::size_t first, std::size_t first_found, float least) {
+  const auto weak = [&](const Hypothesis& h) { return h.detection.score < least; };
+  const auto added = state.hypotheses.begin() + static_cast<std::ptrdiff_t>(first);
+  const auto dropped = [&](const Pose& found) {  // a found pose is the very pose of its hypothesis
+    return std::any_of(added, state.hypotheses.end(),
+                       [&](const Hypothesis& h) { return weak(h) && h.detection.pose.matrix() == found.matrix(); });
+  };
+  state.found.erase(std::remove_if(state.found.begin() + static_cast<std::ptrdiff_t>(first_found), state.found.end(), dropped),
+                    state.found.end());
+  state.hypotheses.erase(std::remove_if(added, state.hypotheses.end(), weak), state.hypotheses.end());
 }
 
 }  // namespace
@@ -80,19 +65,17 @@ ScheduleTimes revoteLeftPoints(const ModelDatabase& db, const StageSettings& p, 
   const std::vector<char> explained = explainedPoints(scene.points, state, p, shape);
   const std::vector<std::uint32_t> order = groupsMostlyLeft(groups, explained, static_cast<std::size_t>(p.C_n));
   if (order.empty()) return {};
-  NeighbourhoodVoter voter(db, scene.points, scene.normals, p.vote_radius, symmetry.candidatesPerPoint(p),
-                           partnersLeft(scene.points, explained, p.partner_spacing), p.candidate_spacing, symmetry.votingOrbits(),
-                           mildOutliers(p));
+  const std::unique_ptr<NeighbourhoodVoter> voter = makeVoter(db, scene, p, symmetry, &explained);
   const double setup_ms = msSince(t0);
   Matcher again = matcher;
-  again.local = &voter;
+  again.local = voter.get();
   // The weak detections' points count as removed while the pass runs; what it removes stays so.
   const std::vector<char> removed = std::exchange(state.removed, explained);
   const std::size_t first = state.hypotheses.size(), first_found = state.found.size();
-  GroupSchedule schedule(db, p, shape, again, groups, &voter, may_vote, state);
+  GroupSchedule schedule(db, p, shape, again, groups, voter.get(), may_vote, state);
   schedule.run(order, false);
   for (std::size_t i = 0; i < removed.size(); ++i) state.removed[i] = removed[i] || (state.removed[i] && !explained[i]);
-  dropWeakAdded(state, first, first_found, p, std::max(p.min_score, p.retry_min_score));
+  dropWeakAdded(state, first, first_found, std::max(p.min_score, p.retry_min_score));
   ScheduleTimes times = schedule.times();
   times.local_vote_ms += setup_ms;
   return times;

@@ -24,4 +24,9 @@ struct LocalVotes {
 LocalVotes makeLocalVotes(const ModelDatabase& db, const PreparedScene& scene, const StageSettings& p,
                           const PartSymmetry& symmetry);
 
+/// The voter over the scene, its partners one per partner_spacing cube (all without it) among
+/// the points not flagged in `excluded` (all when null).
+std::unique_ptr<NeighbourhoodVoter> makeVoter(const ModelDatabase& db, const PreparedScene& scene, const StageSettings& p,
+                                              const PartSymmetry& symmetry, const std::vector<char>* excluded = nullptr);
+
 }  // namespace binpose
