@@ -247,7 +247,7 @@ bool Matcher::sunk(const Pose& pose) const {
 }
 
 float Matcher::prescore(const Pose& pose, bool second_pass) const {
-  const Evidence e = evidence.evaluate(pose, icp_model, p.icp_max_distance, 0.0f);
+  const Evidence e = evidence.evaluate(pose, prescore_model, p.icp_max_distance, 0.0f);
   return second_pass ? e.scoreWithoutGrazing() : e.score();
 }
 

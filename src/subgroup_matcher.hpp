@@ -71,8 +71,9 @@ struct Slot {
 struct Matcher {
   const ModelDatabase& db;
   const StageSettings& p;
-  const PreparedModel& icp_model;     ///< ICP's share of the model points
-  const PreparedModel& scored_model;  ///< all of them, for the score
+  const PreparedModel& icp_model;       ///< ICP's share of the model points
+  const PreparedModel& prescore_model;  ///< a share of those, for prescore()
+  const PreparedModel& scored_model;    ///< all of them, for the score
   const PreparedScene& scene;
   const PointCloud& scan;
   const PointGrid& scan_grid;
@@ -141,7 +142,7 @@ struct Matcher {
   /// Whether more than max_sunk_share of the posed model lies inside the bin's planes
   /// (SceneEvidence::sinking), where no part can be.
   [[nodiscard]] bool sunk(const Pose& pose) const;
-  /// The pose's score at the ICP gate on ICP's points (a second pass's: without grazing points).
+  /// The pose's score at the ICP gate on prescore_model (a second pass's: without grazing points).
   [[nodiscard]] float prescore(const Pose& pose, bool second_pass) const;
 
  private:

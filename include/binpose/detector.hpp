@@ -117,8 +117,9 @@ class Detector {
  private:
   const ModelDatabase& db_;
   std::unique_ptr<const StageSettings> settings_;
-  PreparedModel icp_model_;     ///< the model points ICP pairs up (icp_model_points of them)
-  PreparedModel scored_model_;  ///< all the model points, for the score
+  PreparedModel icp_model_;                       ///< the model points ICP pairs up (icp_model_points of them)
+  PreparedModel prescore_model_;                  ///< a share of those, for the pre-screen's score at ICP's gate
+  PreparedModel scored_model_;                    ///< all the model points, for the score
   std::unique_ptr<const PartSymmetry> symmetry_;  ///< none, a body of revolution, or n-fold symmetry
   std::unique_ptr<const ModelShape> shape_;  ///< removal, same-pose and overlap tests
   std::unique_ptr<const std::vector<ModelFace>> faces_;  ///< the model's flat faces (face_hypotheses)
