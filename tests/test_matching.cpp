@@ -644,9 +644,11 @@ TEST(Voting, APointWithoutAnUpperOutlierKeepsItsMostVotedMildOnes) {
       EXPECT_GT(counts[c.model], limit) << k;
       least_kept = std::min(least_kept, counts[c.model]);
     }
-    for (std::uint32_t m = 0; m < counts.size(); ++m)  // none left out with more votes than one kept
-      if (std::none_of(by_mild.begin(), by_mild.end(), [&](const Correspondence& c) { return c.model == m; }))
+    for (std::uint32_t m = 0; m < counts.size(); ++m) {  // none left out with more votes than one kept
+      if (std::none_of(by_mild.begin(), by_mild.end(), [&](const Correspondence& c) { return c.model == m; })) {
         EXPECT_LE(counts[m], least_kept) << k;
+      }
+    }
   }
   std::printf("%d points without an upper outlier, %d of them with mild ones\n", without_outlier, with_mild);
   EXPECT_GT(with_mild, 5);
