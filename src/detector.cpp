@@ -177,15 +177,8 @@ Detector::Detector(const ModelDatabase& db, const DetectionParams& params)
 Detector::Detector(const ModelDatabase& db, const StageSettings& settings)
     : db_(db),
       settings_(checkedSettings(settings, db.model())),
-      icp_model_([&] {
-        OrientedPoints share =
-            evenShare(db.model().points, db.model().normals, static_cast<std::size_t>(settings_->icp_model_points));
-        return PreparedModel(std::move(share.points), std::move(share.normals));
-      }()),
-      prescore_model_([&] {
-        OrientedPoints share = evenShare(icp_model_.points(), icp_model_.normals(), icp_model_.points().size() / kPrescoreStride);
-        return PreparedModel(std::move(share.points), std::move(share.normals));
-      }()),
+      icp_model_(preparedShare(db.model().points, db.model().normals, static_cast<std::size_t>(settings_->icp_model_points))),
+      prescore_model_(preparedShare(icp_model_.points(), icp_model_.normals(), icp_model_.points().size() / kPrescoreStride)),
       scored_model_(db.model().points, db.model().normals) {
   const OrientedModel& model = db.model();
   symmetry_ = std::make_unique<const PartSymmetry>(db, *settings_);

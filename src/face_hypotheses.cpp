@@ -463,10 +463,7 @@ std::vector<ModelFace> flatFaces(const Points& points, const Points& normals, fl
 void addFaceDetections(const std::vector<ModelFace>& faces, const Matcher& m, const ModelShape& shape, MatchState& state) {
   if (faces.empty()) return;
   const StageSettings& p = m.p;
-  const auto shareOf = [&](std::size_t count) {
-    OrientedPoints few = evenShare(m.scored_model.points(), m.scored_model.normals(), count);
-    return PreparedModel(std::move(few.points), std::move(few.normals));
-  };
+  const auto shareOf = [&](std::size_t count) { return preparedShare(m.scored_model.points(), m.scored_model.normals(), count); };
   float least = INFINITY;
   for (const ModelFace& f : faces) least = std::min(least, f.area);
   const std::vector<FlatRegion> regions = regionsToTry(m, flatRegions(m, state.removed, kLeastAreaShare * least), faces);

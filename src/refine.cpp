@@ -161,6 +161,11 @@ OrientedPoints evenShare(const Points& points, const Points& normals, std::size_
   return out;
 }
 
+PreparedModel preparedShare(const Points& points, const Points& normals, std::size_t count) {
+  OrientedPoints share = evenShare(points, normals, count);
+  return PreparedModel(std::move(share.points), std::move(share.normals));
+}
+
 PreparedModel::PreparedModel(Points points, Points normals)
     : points_(std::move(points)), normals_(std::move(normals)), centre_(Vec3::Zero()), reach_(0) {
   if (points_.size() != normals_.size())

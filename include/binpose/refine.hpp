@@ -66,6 +66,9 @@ class PreparedModel {
   std::unique_ptr<detail::OrientedLanes> lanes_, coarse_;
 };
 
+/// evenShare's `count` points (all when 0), made ready as a PreparedModel.
+PreparedModel preparedShare(const Points& points, const Points& normals, std::size_t count);
+
 /// Point-to-plane ICP (Chen & Medioni) of the model's sensor-facing points against the scan,
 /// with the model's normals as the planes; each step a linearised 6-dof least-squares solve.
 /// Returns the refined pose (the input pose when too few points pair up).
