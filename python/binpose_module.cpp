@@ -205,10 +205,12 @@ class PyDetector {
     if (PyErr_WarnEx(PyExc_UserWarning, text.c_str(), 1) < 0) throw py::error_already_set();  // warnings set to errors
   }
 
-  static void dropNonFinite(PointCloud& scan) {
+  /// Drops the rows without a measurement (isMeasured: NaN, or the origin as a depth SDK's point
+  /// cloud gives a pixel without a depth) and those with a non-finite normal.
+  static void dropUnmeasured(PointCloud& scan) {
     std::size_t kept = 0;
     for (std::size_t i = 0; i < scan.points.size(); ++i) {
-      if (!scan.points[i].allFinite() || (scan.hasNormals() && !scan.normals[i].allFinite())) continue;
+      if (!isMeasured(scan.points[i]) || (scan.hasNormals() && !scan.normals[i].allFinite())) continue;
       scan.points[kept] = scan.points[i];
       if (scan.hasNormals()) scan.normals[kept] = scan.normals[i];
       ++kept;
@@ -217,7 +219,7 @@ class PyDetector {
     if (!scan.normals.empty()) scan.normals.resize(kept);
   }
 
-  /// The scan of N x 3 `points` (and `normals`, or None), mm, its non-finite rows dropped; a
+  /// The scan of N x 3 `points` (and `normals`, or None), mm, its rows without a measurement dropped; a
   /// warning where they look like metres.
   PointCloud cloudOf(const py::object& points, const py::object& normals) const {
     PointCloud scan;
@@ -227,7 +229,7 @@ class PyDetector {
       if (scan.normals.size() != scan.points.size())
         throw Error(fmt::format("normals has {} rows for {} points", scan.normals.size(), scan.points.size()));
     }
-    dropNonFinite(scan);
+    dropUnmeasured(scan);
     warnIfMetres(scan);
     return scan;
   }
@@ -376,7 +378,7 @@ PYBIND11_MODULE(binpose, m) {
       "guess_viewpoint",
       [](const py::object& points) {
         Points scan = pointsOf(points, "points");
-        std::erase_if(scan, [](const Vec3& p) { return !p.allFinite(); });
+        std::erase_if(scan, [](const Vec3& p) { return !isMeasured(p); });
         ViewpointGuess g;
         {
           py::gil_scoped_release released;
@@ -398,7 +400,8 @@ PYBIND11_MODULE(binpose, m) {
            "preset: default or thesis; keyword parameters by DetectionParams's names (r, eta, e_gmax, C_n, ...), "
            "in mm, replacing the preset's values scaled to the model.")
       .def("detect", &PyDetector::detect, py::arg("points"), py::arg("normals") = py::none(), py::arg("viewpoint") = py::none(),
-           "points: N x 3 array in mm; normals: N x 3 or None; viewpoint: (x, y, z) mm (None: the constructor's, else the "
+           "points: N x 3 array in mm (rows of NaN or exactly (0, 0, 0), a pixel without a depth, are dropped); normals: N x 3 "
+           "or None; viewpoint: (x, y, z) mm (None: the constructor's, else the "
            "origin when it can have seen the points, else guess_viewpoint's).")
       .def("detect_depth", &PyDetector::detectDepth, py::arg("depth"), py::arg("fx"), py::arg("fy"), py::arg("cx"), py::arg("cy"),
            py::arg("depth_scale") = 1.0, "depth: H x W uint16 array; depth_mm = raw * depth_scale.")

@@ -122,10 +122,33 @@ void countStages(const PreparedScan& prepared, std::size_t groups, const MatchSt
   result.refound = state.refound;
 }
 
-/// A scan made ready for matching: depths copied over blocks of pixels thinned out, flying
-/// pixels dropped, then sub-sampled, oriented, measured and its planes found (prepareScan).
+/// The scan without its points that hold no measurement (isMeasured: NaN, or the origin as a
+/// depth camera's SDK writes a pixel without a depth); empty when every point holds one. The
+/// points kept keep their order, normals and pixels. Left in, a few thousand copies of the origin
+/// are a dense cluster that no pixel lattice, noise estimate or neighbour search expects.
+std::optional<PointCloud> withoutUnmeasured(const PointCloud& scan) {
+  if (std::all_of(scan.points.begin(), scan.points.end(), isMeasured)) return std::nullopt;
+  PointCloud kept = scan;
+  const bool normals = scan.hasNormals(), pixels = scan.pixel.size() == scan.size();
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < scan.size(); ++i) {
+    if (!isMeasured(scan.points[i])) continue;
+    kept.points[n] = scan.points[i];
+    if (normals) kept.normals[n] = scan.normals[i];
+    if (pixels) kept.pixel[n] = scan.pixel[i];
+    ++n;
+  }
+  kept.points.resize(n);
+  if (normals) kept.normals.resize(n);
+  if (pixels) kept.pixel.resize(n);
+  return kept;
+}
+
+/// A scan made ready for matching: points without a measurement dropped, depths copied over
+/// blocks of pixels thinned out, flying pixels dropped, then sub-sampled, oriented, measured and
+/// its planes found (prepareScan).
 struct ReadyScan {
-  std::optional<PointCloud> thinned, cleaned;
+  std::optional<PointCloud> measured, thinned, cleaned;
   const PointCloud* scan = nullptr;  ///< the cloud matched: cleaned, else thinned, else the input
   std::size_t flying = 0;            ///< flying pixels dropped
   int pixel_stride = 1;
@@ -133,9 +156,11 @@ struct ReadyScan {
 };
 
 void readyScan(const PointCloud& input, const StageSettings& settings, ReadyScan& out) {
-  checkCoordinates(input);
-  out.thinned = thinnedToIndependentNoise(input, settings, out.pixel_stride);
-  const PointCloud& kept = out.thinned ? *out.thinned : input;
+  out.measured = withoutUnmeasured(input);
+  const PointCloud& measured = out.measured ? *out.measured : input;
+  checkCoordinates(measured);
+  out.thinned = thinnedToIndependentNoise(measured, settings, out.pixel_stride);
+  const PointCloud& kept = out.thinned ? *out.thinned : measured;
   out.cleaned = withoutFlyingPixels(kept, settings);
   out.scan = out.cleaned ? &*out.cleaned : &kept;
   out.flying = kept.size() - out.scan->size();
@@ -209,7 +234,7 @@ DetectionResult Detector::detect(const PointCloud& input) const {
   const auto t0 = Clock::now();
   DetectionResult result;
   result.scene_points = input.size();
-  if (input.empty()) return result;
+  if (std::none_of(input.points.begin(), input.points.end(), isMeasured)) return result;
   ReadyScan ready;  // 5.2.1-5.2.2: sub-sampled, oriented, the bin's planes apart; the noise measured
   readyScan(input, *settings_, ready);
   const PointCloud& scan = *ready.scan;
@@ -277,7 +302,8 @@ DetectionResult Detector::detect(const PointCloud& input) const {
 
 std::vector<PoseCheck> Detector::check(const PointCloud& input, const std::vector<Pose>& poses) const {
   if (!settings_->verify) throw Error("checking a pose needs verification on (verify: true)");
-  if (input.empty()) throw Error("checking a pose needs a scan with points; this one is empty");
+  if (std::none_of(input.points.begin(), input.points.end(), isMeasured))
+    throw Error("checking a pose needs a scan with points; this one has none that holds a measurement");
   if (poses.size() > kMostCheckedPoses)
     throw Error(fmt::format("checking {} poses at once: at most {} a call", poses.size(), kMostCheckedPoses));
   ReadyScan ready;

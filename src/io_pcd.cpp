@@ -243,7 +243,7 @@ PointCloud readPcd(const std::string& path, double scale) {
   for (std::size_t p = 0; p < h.points; ++p) {
     const double* v = &values[p * m];
     const Vec3 point(float(v[0] * scale), float(v[1] * scale), float(v[2] * scale));
-    if (!point.allFinite()) continue;  // NaN marks an invalid pixel
+    if (!isMeasured(point)) continue;  // NaN or the origin: a pixel without a depth
     cloud.points.push_back(point);
     if (cloud.organized()) cloud.pixel.push_back(static_cast<std::int32_t>(p));
     if (has_normals) {

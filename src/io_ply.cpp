@@ -296,7 +296,7 @@ PointCloud toCloud(PlyData&& data) {
   cloud.points.reserve(data.points.size());
   const bool normals = !data.normals.empty();
   for (std::size_t i = 0; i < data.points.size(); ++i) {
-    if (!data.points[i].allFinite()) continue;  // NaN marks an invalid scan point
+    if (!isMeasured(data.points[i])) continue;  // NaN or the origin: a pixel without a depth
     cloud.points.push_back(data.points[i]);
     if (normals) cloud.normals.push_back(data.normals[i]);
   }

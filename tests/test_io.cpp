@@ -135,6 +135,15 @@ TEST(PlyReader, DepthImageSavedAsPlyGetsItsPixelsBack) {
   EXPECT_EQ(back.height, 150);
   EXPECT_TRUE(back.has_viewpoint);
   ASSERT_EQ(back.pixel, pixels);  // every point on its own pixel, in pixel order
+  // A depth SDK's cloud of every pixel, (0, 0, 0) at the holes (isMeasured): the same image.
+  Points every(200 * 150, Vec3::Zero());
+  for (std::size_t i = 0; i < pts.size(); ++i) every[std::size_t(pixels[i])] = pts[i];
+  writePly(path, every);
+  const PointCloud holes = readPlyCloud(path);
+  ASSERT_TRUE(holes.organized());
+  EXPECT_NEAR(holes.fx, kF, 1e-3f);
+  EXPECT_EQ(holes.pixel, pixels);
+  EXPECT_EQ(holes.points, back.points);
   Points moved = pts;
   for (Vec3& p : moved) p += Vec3(5.0f, 0.0f, 0.0f);
   writePly(path, moved);
@@ -190,9 +199,10 @@ TEST(PlyReader, BigEndianDoublesExtraPropertiesQuadsAndMetres) {
 
 TEST(PlyReader, ZeroNormalIsMissing) {
   const std::string path = test::tempPath("zero.ply");
-  test::writeAll(path, "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\n"
-                       "property float nx\nproperty float ny\nproperty float nz\nend_header\n"
-                       "0 0 0 0 0 0\n1 0 0 0 0 5\n");
+  test::writeAll(path,
+                 "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\n"
+                 "property float nx\nproperty float ny\nproperty float nz\nend_header\n"
+                 "0 0 1 0 0 0\n1 0 0 0 0 5\n");
   const PointCloud c = readPlyCloud(path);
   ASSERT_EQ(c.size(), 2u);
   EXPECT_EQ(c.normals[0], Vec3::Zero());
@@ -219,9 +229,10 @@ TEST(PlyReader, BrokenFilesGiveOneLineErrors) {
   EXPECT_NE(errorOf([&] { readPlyCloud(header); }).find("unknown PLY property type"), std::string::npos);
 
   const std::string nan = test::tempPath("nan.ply");
-  test::writeAll(nan, "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-                      "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
-                      "0 0 0\nnan 1 0\n1 1 0\n3 0 1 2\n");
+  test::writeAll(nan,
+                 "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                 "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                 "0 0 1\nnan 1 0\n1 1 0\n3 0 1 2\n");
   EXPECT_NE(errorOf([&] { readPlyMesh(nan); }).find("non-finite"), std::string::npos);
   EXPECT_EQ(readPlyCloud(nan).size(), 2u);  // a scan drops the NaN point instead
 
@@ -295,18 +306,19 @@ TEST(PcdReader, BunnyAsciiWithNormals) {
 }
 
 TEST(PcdReader, BinaryWithExtraFieldsAndNaN) {
-  std::string s = "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z rgb label\nSIZE 4 4 8 4 2\nTYPE F F F F U\n"
-                  "COUNT 1 1 1 1 1\nWIDTH 3\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA binary\n";
-  const float xy[3][2] = {{1, 2}, {NAN, 0}, {4, 5}};
-  const double z[3] = {3, 0, 6};
-  for (int i = 0; i < 3; ++i) {
+  std::string s =
+      "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z rgb label\nSIZE 4 4 8 4 2\nTYPE F F F F U\n"
+      "COUNT 1 1 1 1 1\nWIDTH 4\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 4\nDATA binary\n";
+  const float xy[4][2] = {{1, 2}, {NAN, 0}, {0, 0}, {4, 5}};
+  const double z[4] = {3, 0, 0, 6};
+  for (int i = 0; i < 4; ++i) {
     putLittle(s, xy[i][0]); putLittle(s, xy[i][1]); putLittle(s, z[i]);
     putLittle(s, 0.25f); putLittle<std::uint16_t>(s, 9);
   }
   const std::string path = test::tempPath("bin.pcd");
   test::writeAll(path, s);
   const PointCloud c = readPcd(path);
-  ASSERT_EQ(c.size(), 2u);  // the NaN point is dropped
+  ASSERT_EQ(c.size(), 2u);  // the NaN point and the origin (a pixel without a depth) are dropped
   EXPECT_EQ(c.points[1], Vec3(4, 5, 6));
   test::writeAll(path, s.substr(0, s.size() - 5));
   EXPECT_NE(errorOf([&] { readPcd(path); }).find("truncated"), std::string::npos);

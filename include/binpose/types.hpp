@@ -54,6 +54,13 @@ struct Mesh {
   [[nodiscard]] bool hasNormals() const { return !normals.empty() && normals.size() == vertices.size(); }
 };
 
+/// Whether a scan point holds a measurement: finite, and not exactly the origin. A depth
+/// camera's driver or SDK writes a pixel without a depth as NaN or as (0, 0, 0) (RealSense's
+/// point cloud, Azure Kinect's point image, Open3D's depth-to-cloud with every pixel kept): in
+/// the camera's frame no surface can lie at the sensor's own centre, and in another frame a
+/// measured point lands exactly on the origin, to the last bit, one time in billions.
+[[nodiscard]] inline bool isMeasured(const Vec3& p) { return p.allFinite() && (p.x() != 0.0f || p.y() != 0.0f || p.z() != 0.0f); }
+
 /// Unit vector n normalised in place; false (and n untouched) for a zero or non-finite vector.
 bool normalizeSafe(Vec3& n);
 

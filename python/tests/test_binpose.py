@@ -114,7 +114,7 @@ def test_detect_depth_thins_pixels_that_share_their_noise(caps):
     assert binpose.Detector(db).detect_depth(native, 550.0, 550.0, 159.5, 119.5, 0.1).pixel_stride == 1
 
 
-def test_detect_points_drops_non_finite_rows(caps):
+def test_detect_points_drops_rows_without_a_measurement(caps):
     _, db, camera, truth, depth = caps
     rows, cols = np.nonzero(depth)
     z = depth[rows, cols] * camera["depth_scale"]
@@ -127,6 +127,15 @@ def test_detect_points_drops_non_finite_rows(caps):
     with_nan = np.vstack([points, [[np.nan, 0, 0], [0, np.inf, 1]]])
     again = detector.detect(with_nan, viewpoint=(0, 0, 0))
     assert [d.pose.tolist() for d in again] == [d.pose.tolist() for d in detector.detect(points)]
+    # A depth SDK's point cloud (RealSense's, say): a row for every pixel, (0, 0, 0) where the
+    # pixel has no depth. Those rows hold no measurement and are dropped.
+    all_rows, all_cols = np.mgrid[0 : depth.shape[0], 0 : depth.shape[1]]
+    z_all = depth * camera["depth_scale"]
+    every_pixel = np.stack([(all_cols - camera["cx"]) * z_all / camera["fx"],
+                            (all_rows - camera["cy"]) * z_all / camera["fy"], z_all], axis=-1).reshape(-1, 3)
+    assert (every_pixel == 0).all(axis=1).sum() > 1000
+    sdk = detector.detect(every_pixel.astype(np.float32))
+    assert [d.pose.tolist() for d in sdk] == [d.pose.tolist() for d in detector.detect(points.astype(np.float32))]
     assert len(detector.detect(np.zeros((0, 3)))) == 0
 
 
