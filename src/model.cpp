@@ -11,6 +11,11 @@
 #include <cmath>
 #include <fmt/format.h>
 #include <numbers>
+#include <numeric>
+#include <utility>
+#include <vector>
+#include <algorithm>
+#include <cstdint>
 
 namespace binpose {
 namespace {
@@ -54,15 +59,85 @@ std::vector<std::array<Vec3, 3>> cornerNormals(const Mesh& mesh, const Points& f
   return corners;
 }
 
+/// Each vertex's first vertex at the same position, bit for bit: a mesh saved face by face (STL,
+/// a PLY with a vertex per face corner) repeats a position once per face around it.
+std::vector<std::uint32_t> samePositions(const Points& vertices) {
+  std::vector<std::uint32_t> order(vertices.size());
+  std::iota(order.begin(), order.end(), 0u);
+  const auto key = [&](std::uint32_t i) { return std::array<float, 3>{vertices[i].x(), vertices[i].y(), vertices[i].z()}; };
+  std::sort(order.begin(), order.end(),
+            [&](std::uint32_t a, std::uint32_t b) { return std::pair(key(a), a) < std::pair(key(b), b); });
+  std::vector<std::uint32_t> first(vertices.size());
+  for (std::size_t k = 0; k < order.size(); ++k)
+    first[order[k]] = k > 0 && key(order[k]) == key(order[k - 1]) ? first[order[k - 1]] : order[k];
+  return first;
+}
+
+/// The faces of each edge shared by exactly two (vertices matched by position), with whether
+/// they run it in opposite directions, as a consistently wound surface does.
+std::vector<std::vector<std::pair<std::uint32_t, bool>>> edgeNeighbours(const Mesh& mesh) {
+  const std::vector<std::uint32_t> same = samePositions(mesh.vertices);
+  struct Side {
+    std::uint64_t edge;
+    std::uint32_t face;
+    bool forward;
+  };
+  std::vector<Side> sides;
+  for (std::uint32_t f = 0; f < mesh.faces.size(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const std::uint64_t a = same[mesh.faces[f][k]], b = same[mesh.faces[f][(k + 1) % 3]];
+      if (a != b) sides.push_back({std::min(a, b) << 32 | std::max(a, b), f, a < b});
+    }
+  std::sort(sides.begin(), sides.end(),
+            [](const Side& x, const Side& y) { return std::pair(x.edge, x.face) < std::pair(y.edge, y.face); });
+  std::vector<std::vector<std::pair<std::uint32_t, bool>>> neighbours(mesh.faces.size());
+  for (std::size_t i = 0, j = 0; i < sides.size(); i = j) {
+    j = i + 1;
+    while (j < sides.size() && sides[j].edge == sides[i].edge) ++j;
+    if (j - i != 2 || sides[i].face == sides[i + 1].face) continue;  // a boundary or a non-manifold edge
+    const bool opposite = sides[i].forward != sides[i + 1].forward;
+    neighbours[sides[i].face].emplace_back(sides[i + 1].face, opposite);
+    neighbours[sides[i + 1].face].emplace_back(sides[i].face, opposite);
+  }
+  return neighbours;
+}
+
+/// The faces wound against the rest of their connected surface (a mesh without normals): across
+/// the edges that two faces share, each patch is made consistent, wound as most of its faces are.
+/// An exporter that flips some faces leaves their normals inward, and every feature with them.
+std::vector<char> againstTheirSurface(const Mesh& mesh) {
+  const auto neighbours = edgeNeighbours(mesh);
+  std::vector<char> flip(mesh.faces.size(), 0), seen(mesh.faces.size(), 0);
+  std::vector<std::uint32_t> patch;
+  for (std::uint32_t start = 0; start < mesh.faces.size(); ++start) {
+    if (seen[start]) continue;
+    patch.assign(1, start);
+    seen[start] = 1;
+    for (std::size_t k = 0; k < patch.size(); ++k)  // breadth first; a non-orientable surface keeps the first reached
+      for (const auto& [g, opposite] : neighbours[patch[k]])
+        if (!seen[g]) {
+          seen[g] = 1;
+          flip[g] = static_cast<char>(flip[patch[k]] ^ !opposite);
+          patch.push_back(g);
+        }
+    const auto flipped = std::count_if(patch.begin(), patch.end(), [&](std::uint32_t f) { return flip[f] != 0; });
+    if (2 * static_cast<std::size_t>(flipped) > patch.size())
+      for (const std::uint32_t f : patch) flip[f] = static_cast<char>(!flip[f]);
+  }
+  return flip;
+}
+
 }  // namespace
 
 Points faceNormals(const Mesh& mesh) {
   Points normals(mesh.faces.size(), Vec3::Zero());
+  const std::vector<char> flip = mesh.hasNormals() ? std::vector<char>(mesh.faces.size(), 0) : againstTheirSurface(mesh);
   double signed_volume = 0;
   for (std::size_t f = 0; f < mesh.faces.size(); ++f) {
     const Vec3 &a = mesh.vertices[mesh.faces[f][0]], &b = mesh.vertices[mesh.faces[f][1]], &c = mesh.vertices[mesh.faces[f][2]];
-    Vec3 n = (b - a).cross(c - a);
-    signed_volume += static_cast<double>(a.dot(b.cross(c))) / 6.0;
+    const float side = flip[f] ? -1.0f : 1.0f;
+    Vec3 n = side * (b - a).cross(c - a);
+    signed_volume += side * static_cast<double>(a.dot(b.cross(c))) / 6.0;
     if (!normalizeSafe(n)) continue;
     if (mesh.hasNormals()) {  // trust the file's vertex normals for the side, face by face
       const Vec3 given = mesh.normals[mesh.faces[f][0]] + mesh.normals[mesh.faces[f][1]] + mesh.normals[mesh.faces[f][2]];

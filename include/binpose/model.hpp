@@ -29,8 +29,10 @@ struct OrientedModel {
   float sample_radius = 0; ///< Poisson-disk radius used, mm
 };
 
-/// Per-face unit normals, oriented outwards: by the file's vertex normals when it has them,
-/// otherwise by the sign of the enclosed volume. Degenerate faces get a zero normal.
+/// Per-face unit normals, oriented outwards: by the file's vertex normals when it has them;
+/// otherwise each connected surface (faces sharing edges, vertices matched by position) wound
+/// consistently, as most of its faces are, then all turned by the sign of the enclosed volume.
+/// Degenerate faces get a zero normal.
 Points faceNormals(const Mesh& mesh);
 
 /// Poisson-disk samples of the surface with crease-aware interpolated face normals.
