@@ -240,7 +240,13 @@ binpose::PointCloud loadScene(const DetectOptions& o, float diameter) {
   return scan;
 }
 
-void warnAboutUnits(const binpose::PointCloud& scan, float diameter) {
+/// Warnings about a scene read: none of its points holds a measurement, or its extent says its
+/// units or the model's are not millimetres.
+void warnAboutScene(const binpose::PointCloud& scan, float diameter) {
+  if (scan.empty()) {
+    fmt::print(stderr, "warning: the scene holds no measured point (NaN and (0, 0, 0), a pixel without a depth, are dropped)\n");
+    return;
+  }
   const float extent = binpose::boundsDiagonal(scan.points);
   if (extent <= 0) return;
   if (extent < binpose::kLeastScanShareOfPart * diameter)
@@ -300,7 +306,7 @@ int runDetect(const DetectOptions& o) {
   const binpose::ModelDatabase db = loadOrTrain(o);
   const float diameter = db.model().diameter;
   const binpose::PointCloud scan = loadScene(o, diameter);
-  warnAboutUnits(scan, diameter);
+  warnAboutScene(scan, diameter);
   const binpose::DetectionParams params = detectParams(o, diameter, scan);
   const binpose::Detector detector(db, params);
   const binpose::DetectionResult r = detector.detect(scan);
@@ -428,7 +434,7 @@ int runCheck(const DetectOptions& o) {
   const binpose::ModelDatabase db = loadOrTrain(o);
   const float diameter = db.model().diameter;
   const binpose::PointCloud scan = loadScene(o, diameter);
-  warnAboutUnits(scan, diameter);
+  warnAboutScene(scan, diameter);
   const binpose::DetectionParams params = detectParams(o, diameter, scan);
   const std::vector<binpose::PoseCheck> checks = binpose::Detector(db, params).check(scan, poses);
   fmt::print("{:>4}  {:>6}  {:>7}  {:>8}  {:>27}  {:<15}  {:<15}\n", "pose", "score", "visible", "moved", "refined position (mm)",

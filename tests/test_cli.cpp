@@ -131,13 +131,21 @@ TEST(DetectCli, JsonResultOnARealScan) {
   EXPECT_NE(run.out.find("rank"), std::string::npos) << "a summary table";
 }
 
+// An empty scene, or one whose every point is a pixel without a depth (NaN, or (0, 0, 0) as depth
+// SDKs write it): no detection, exit 0, and a warning that nothing was measured.
 TEST(DetectCli, EmptySceneIsZeroDetectionsAndExitZero) {
-  const std::string empty = test::tempPath("empty.ply");
+  const std::string empty = test::tempPath("empty.ply"), unmeasured = test::tempPath("unmeasured.ply");
   test::writeAll(empty, "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\nend_header\n");
-  const std::string out = test::tempPath("empty.json");
-  const CliRun run = runCli(fmt::format("detect --model {} --scene {} --out {}", capDatabase(), empty, out));
-  ASSERT_EQ(run.code, 0) << run.out;
-  EXPECT_EQ(nlohmann::json::parse(test::readAll(out))["detections"].size(), 0u);
+  test::writeAll(unmeasured,
+                 "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                 "end_header\n0 0 0\nnan 0 700\n0 0 0\n");
+  for (const std::string& scene : {empty, unmeasured}) {
+    const std::string out = test::tempPath("empty.json");
+    const CliRun run = runCli(fmt::format("detect --model {} --scene {} --out {}", capDatabase(), scene, out));
+    ASSERT_EQ(run.code, 0) << run.out;
+    EXPECT_EQ(nlohmann::json::parse(test::readAll(out))["detections"].size(), 0u) << scene;
+    EXPECT_NE(run.out.find("no measured point"), std::string::npos) << run.out;
+  }
 }
 
 // PCL's milk frame is in metres, as many sensors' software writes: by default (--units auto) it
