@@ -6,6 +6,9 @@
 #include <binpose/geometry.hpp>
 #include <binpose/normals.hpp>
 #include <binpose/sampling.hpp>
+#include <binpose/viewpoint.hpp>
+
+#include "outward_normals.hpp"
 
 #include <array>
 #include <cmath>
@@ -19,6 +22,10 @@
 
 namespace binpose {
 namespace {
+
+/// A point-cloud model hiding more than this share of itself from its viewpoint is no single view
+/// (guessViewpoint's own bound for a scan seen by its sensor).
+constexpr float kOneViewHidden = 0.05f;
 
 void checkParams(const ModelParams& p) {
   if (p.rho_model < 0 || !std::isfinite(p.rho_model))
@@ -184,7 +191,11 @@ OrientedModel prepareModel(const PointCloud& cloud, const ModelParams& params) {
   const auto kept = poissonDiskSelectCount(cloud.points, target, params.seed, &model.sample_radius);
   Points sampled;
   for (const std::uint32_t i : kept) sampled.push_back(cloud.points[i]);
-  const Points fitted = estimateNormals(cloud.points, sampled, params.normal_k, cloud.viewpoint);
+  Points fitted = estimateNormals(cloud.points, sampled, params.normal_k, cloud.viewpoint);
+  // Points all round the part face no one viewpoint: seen from anywhere, a share of them is
+  // hidden behind the rest (a single view of the part hides none from its sensor).
+  if (!cloud.hasNormals() && guessViewpoint(cloud.points, cloud.viewpoint).assumed_hidden > kOneViewHidden)
+    orientOutward(sampled, fitted);
   for (std::size_t s = 0; s < kept.size(); ++s) {
     const bool given = cloud.hasNormals() && cloud.normals[kept[s]].squaredNorm() > 0.5f;
     const Vec3 n = given ? cloud.normals[kept[s]] : fitted[s];

@@ -1,8 +1,10 @@
 // Model preparation on real models, and `binpose train` end to end.
 #include <binpose/geometry.hpp>
 #include <binpose/io.hpp>
+#include <binpose/kdtree.hpp>
 #include <binpose/model.hpp>
 #include <binpose/model_database.hpp>
+#include <binpose/sampling.hpp>
 #include <binpose/shapes.hpp>
 
 #include "test_util.hpp"
@@ -81,6 +83,35 @@ TEST(Model, PointCloudModelGetsSensorFacingNormals) {
     EXPECT_GT(model.normals[i].dot(milk.viewpoint - model.points[i]), 0.0f);
   params.rho_model = 0.5;
   EXPECT_THROW(prepareModel(milk, params), Error);  // no area known for a cloud
+}
+
+// A model given as points all round the part (no normals, its origin inside it, as a CAD model
+// sampled into a cloud): no viewpoint sees it, and its normals point out of the part, as the
+// mesh's faces say (orientOutward). Turned towards the origin, they pointed in, and the
+// structured-light bins found 39 of 241 copies of IPD obj 0, 1 and 8 with such models against
+// 198 now. IPD obj 1 is a bracket of thin plates: a plate's other side lies a few mm away.
+TEST(Model, PointCloudModelAllRoundGetsOutwardNormals) {
+  for (const char* file : {"ipd_parts/models/obj_000001.ply", "ipd_parts/models/obj_000008.ply"}) {
+    REQUIRE_DATA(file);
+    const Mesh mesh = readPlyMesh(dataPath(file));
+    const Points face_normals = faceNormals(mesh);
+    PointCloud cloud;
+    Points truth;
+    for (const SurfacePoint& s : sampleSurfaceUniform(mesh, 20000, 7)) {
+      cloud.points.push_back(s.point);
+      truth.push_back(face_normals[s.face]);
+    }
+    const OrientedModel model = prepareModel(cloud, ModelParams{});
+    const KdTree tree(cloud.points);
+    int in = 0;
+    for (std::size_t i = 0; i < model.points.size(); ++i) {
+      std::uint32_t j;
+      float d2;
+      ASSERT_TRUE(tree.nearest(model.points[i], j, d2));
+      in += model.normals[i].dot(truth[j]) < 0;
+    }
+    EXPECT_LT(in, int(0.02 * double(model.points.size()))) << file;  // a few at creases, in pieces of their own
+  }
 }
 
 TEST(Model, RejectsAbsurdParameters) {
