@@ -61,6 +61,9 @@ std::vector<std::vector<Link>> neighbourGraph(const KdTree& tree, const Points& 
 constexpr std::size_t kPieceVoters = 31;
 /// A ray passes through the part's surface where a point lies within this many point spacings.
 constexpr float kCrossingSpacings = 1.0f;
+/// Pieces whose rays are counted, largest first: a cloud too rough for any link would otherwise
+/// cast two rays from every point. The rest keep their start's side (away from the centroid).
+constexpr std::size_t kMostVotedPieces = 256;
 
 /// The number of times the ray from p along d (unit) passes through the cloud's surface, marched
 /// in half spacings from two spacings out to `length`: each run of steps with a point within
@@ -123,12 +126,12 @@ void orientOutward(const Points& points, Points& normals) {
   const float spacing = medianSpacing(tree, points), length = diameterBound(points, centre);
   std::vector<char> done(points.size(), 0);
   std::priority_queue<Link, std::vector<Link>, std::greater<>> frontier;
-  std::vector<std::uint32_t> piece;
+  std::vector<std::vector<std::uint32_t>> pieces;
   for (const std::uint32_t start : starts) {
     if (done[start] || normals[start].squaredNorm() < 0.5f) continue;
     if (normals[start].dot(points[start] - centre) < 0) normals[start] = -normals[start];
     done[start] = 1;
-    piece.assign(1, start);
+    std::vector<std::uint32_t>& piece = pieces.emplace_back(1, start);
     for (const Link& l : links[start]) frontier.push(l);
     while (!frontier.empty()) {  // Prim's tree: the lightest link to a point not yet reached
       const Link l = frontier.top();
@@ -140,10 +143,13 @@ void orientOutward(const Points& points, Points& normals) {
       for (const Link& next : links[l.to])
         if (!done[next.to]) frontier.push(next);
     }
-    // The start's side is a guess (an L's inner faces look at the centroid): the rays decide.
+  }
+  // The starts' sides are a guess (an L's inner faces look at the centroid): the rays decide.
+  std::stable_sort(pieces.begin(), pieces.end(), [](const auto& a, const auto& b) { return a.size() > b.size(); });
+  if (pieces.size() > kMostVotedPieces) pieces.resize(kMostVotedPieces);
+  for (const auto& piece : pieces)
     if (spacing > 0 && pointsIn(tree, points, normals, piece, spacing, length))
       for (const std::uint32_t i : piece) normals[i] = -normals[i];
-  }
 }
 
 }  // namespace binpose
