@@ -57,7 +57,7 @@ struct TrainOptions {
 
 void addTrain(CLI::App& app, TrainOptions& o) {
   CLI::App* train = app.add_subcommand("train", "Build a model's feature database (thesis ch. 4.2 and 6)");
-  train->add_option("--model", o.model, "Model: mesh (PLY/STL/OBJ), point cloud (PLY/PCD), or builtin:cap|sphere|box")
+  train->add_option("--model", o.model, "Model: mesh (PLY/STL/OBJ), point cloud (PLY/PCD/XYZ), or builtin:cap|sphere|box")
       ->required();
   train->add_option("--out", o.out, "Database file to write")->required();
   train->add_option("--points", o.points, "Model points n_M after Poisson-disk sampling")->capture_default_str();
@@ -122,7 +122,9 @@ struct DetectOptions {
 /// The options detect and check share: the model, the scan and the parameters.
 void addScanOptions(CLI::App* d, DetectOptions& o) {
   d->add_option("--model", o.model, "Database (.bpdb) or a model to train on the fly (mesh, cloud, builtin:NAME)")->required();
-  d->add_option("--scene", o.scene, "Scan: PLY, PCD, or a 16-bit depth PNG (with --intrinsics)")->required();
+  d->add_option("--scene", o.scene,
+                "Scan: PLY, PCD, ASCII points (.xyz/.txt/.csv/.asc/.pts), or a 16-bit depth PNG (with --intrinsics)")
+      ->required();
   d->add_option("--intrinsics", o.intrinsics, "BOP camera.json or scene_camera.json for a depth PNG");
   d->add_option("--image-id", o.image_id, "Entry of scene_camera.json (default: the first)");
   d->add_option("--preset", o.preset, "Parameter preset: default, or thesis (chapter 5 as written); fast: an alias of default")

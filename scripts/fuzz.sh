@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # Fuzzes binpose's readers with libFuzzer (clang, ASan + UBSan with float-cast-overflow).
-#   scripts/fuzz.sh [SECONDS per harness, default 60] [HARNESS ...]   (ply pcd depth mesh bpdb)
+#   scripts/fuzz.sh [SECONDS per harness, default 60] [HARNESS ...]   (ply pcd depth mesh bpdb xyz)
 # Builds tests/fuzz into build-fuzz, seeds a working corpus per harness from tests/fuzz/corpus
 # and the heads of ../shared/data's real files, then runs the harnesses FUZZ_JOBS at a time
-# (default 2; the test command runs all five side by side). A crash,
+# (default 2; the test command runs all six side by side). A crash,
 # leak, timeout (> 10 s) or out-of-memory (> 2 GB) fails the script; libFuzzer writes the input
 # to build-fuzz/findings/. Needs clang and libclang-rt-14-dev (scripts/deps.sh --fuzz).
 set -euo pipefail
@@ -11,7 +11,7 @@ cd "$(dirname "$0")/.."
 seconds=${1:-60}
 shift || true
 harnesses=("$@")
-[ ${#harnesses[@]} -eq 0 ] && harnesses=(ply pcd depth mesh bpdb)
+[ ${#harnesses[@]} -eq 0 ] && harnesses=(ply pcd depth mesh bpdb xyz)
 
 cmake -S tests/fuzz -B build-fuzz -G Ninja -DCMAKE_CXX_COMPILER=clang++ >/dev/null
 cmake --build build-fuzz
@@ -30,7 +30,7 @@ for h in "${harnesses[@]}"; do
   mkdir -p "build-fuzz/corpus/$h" build-fuzz/findings
   cp tests/fuzz/corpus/"$h"/* "build-fuzz/corpus/$h/"
 done
-mkdir -p build-fuzz/corpus/{ply,pcd,depth,mesh}
+mkdir -p build-fuzz/corpus/{ply,pcd,depth,mesh,xyz}
 seed_from_data ply "" "$data"/uwa/*.ply "$data"/sick_industrial/*.ply "$data"/icbin_mixed/cup_model.ply
 seed_from_data pcd "" "$data"/pcl_milk/milk.pcd "$data"/pcl_milk/milk_tutorial_model.pcd "$data"/pcl_milk/bun0.pcd
 seed_from_data depth '\x00' "$data"/icbin_mixed/camera.json "$data"/ipd_parts/camera_photoneo.json

@@ -12,5 +12,5 @@ echo "== ASan + UBSan build and tests"
 scripts/build.sh build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DBINPOSE_SANITIZE=ON -DBINPOSE_BUILD_BENCH=OFF -DBINPOSE_BUILD_PYTHON=OFF
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
   ctest --test-dir build-asan --output-on-failure -j "$(nproc)"
-echo "== Fuzzing the readers (libFuzzer, the five harnesses side by side for 60 s)"
-FUZZ_JOBS=5 scripts/fuzz.sh 60
+echo "== Fuzzing the readers (libFuzzer, the six harnesses side by side for 60 s)"
+FUZZ_JOBS=6 scripts/fuzz.sh 60

@@ -26,10 +26,16 @@ Units parseUnits(const std::string& text) {
   throw Error(fmt::format("units: expected 'mm' or 'm', got '{}'", text));
 }
 
+bool isXyzPath(const std::string& path) {
+  const std::string ext = detail::extensionOf(path);
+  return ext == "xyz" || ext == "txt" || ext == "csv" || ext == "asc" || ext == "pts";
+}
+
 PointCloud readCloud(const std::string& path, double scale) {
   const std::string ext = detail::extensionOf(path);
   if (ext == "ply") return readPlyCloud(path, scale);
   if (ext == "pcd") return readPcd(path, scale);
+  if (isXyzPath(path)) return readXyz(path, scale);
   Mesh mesh = readMesh(path, scale);
   PointCloud cloud;
   cloud.points = std::move(mesh.vertices);

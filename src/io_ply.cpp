@@ -318,6 +318,8 @@ ModelFile readModelFile(const std::string& path, double scale) {
   const std::string ext = detail::extensionOf(path);
   if (ext == "pcd") {
     file.cloud = readPcd(path, scale);
+  } else if (isXyzPath(path)) {
+    file.cloud = readXyz(path, scale);
   } else if (ext == "ply") {
     PlyData data = readPly(path, scale);
     file.is_mesh = !data.faces.empty();

@@ -248,6 +248,115 @@ TEST(PlyReader, BrokenFilesGiveOneLineErrors) {
   EXPECT_NE(errorOf([&] { readPlyCloud(test::tempPath("absent.ply")); }).find("no such file"), std::string::npos);
 }
 
+// ---- ASCII point files ------------------------------------------------------------------------
+
+namespace {
+/// `cloud` as text, one point a line: `header` first (when not empty), then x y z (nx ny nz) and
+/// `extra` columns, split by `sep`.
+std::string asText(const PointCloud& cloud, const std::string& header, const std::string& sep, bool normals,
+                   const std::string& extra = "") {
+  std::string text = header.empty() ? "" : header + "\n";
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    const Vec3& p = cloud.points[i];
+    text += fmt::format("{:.6f}{}{:.6f}{}{:.6f}", p.x(), sep, p.y(), sep, p.z());
+    if (normals) {
+      const Vec3& n = cloud.normals[i];
+      text += fmt::format("{}{:.6f}{}{:.6f}{}{:.6f}", sep, n.x(), sep, n.y(), sep, n.z());
+    }
+    text += extra.empty() ? "\n" : sep + extra + "\n";
+  }
+  return text;
+}
+
+void expectSameCloud(const PointCloud& a, const PointCloud& b, bool normals) {
+  ASSERT_EQ(a.size(), b.size());
+  ASSERT_EQ(b.hasNormals(), normals);
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    ASSERT_LT((a.points[i] - b.points[i]).norm(), 1e-4f) << "point " << i;
+    if (normals) {
+      ASSERT_LT((a.normals[i] - b.normals[i]).norm(), 1e-5f) << "normal " << i;
+    }
+  }
+}
+}  // namespace
+
+TEST(XyzReader, RealScanAsCsvXyzAndPtsReadsAsItsPly) {
+  REQUIRE_DATA("uwa/rs1_normals.ply");
+  const PointCloud ply = readPlyCloud(dataPath("uwa/rs1_normals.ply"));
+  const std::string csv = test::tempPath("rs1.csv");
+  test::writeAll(csv, asText(ply, "X,Y,Z,Nx,Ny,Nz,Intensity", ",", true, "0.5"));
+  expectSameCloud(ply, readCloud(csv), true);
+  // Columns by name wherever they stand; a header as a comment (CloudCompare's "//X,Y,Z").
+  const std::string named = test::tempPath("rs1_named.txt");
+  std::string text = "// intensity;x;y;z\n";
+  for (const Vec3& p : ply.points) text += fmt::format("7;{:.6f};{:.6f};{:.6f}\n", p.x(), p.y(), p.z());
+  test::writeAll(named, text);
+  expectSameCloud(ply, readCloud(named), false);
+  // x y z r g b: the colours are no normals. In metres, with Leica's point count first.
+  PointCloud metres = ply;
+  for (Vec3& p : metres.points) p /= 1000.0f;
+  const std::string pts = test::tempPath("rs1.pts");
+  test::writeAll(pts, fmt::format("{}\n", ply.size()) + asText(metres, "", " ", false, "200 120 31"));
+  const PointCloud back = readCloud(pts, unitScale(Units::Metres));
+  ASSERT_EQ(back.size(), ply.size());
+  EXPECT_FALSE(back.hasNormals());
+  for (std::size_t i = 0; i < ply.size(); i += 97) ASSERT_LT((back.points[i] - ply.points[i]).norm(), 2e-3f);
+  const ModelFile model = readModelFile(csv);
+  EXPECT_FALSE(model.is_mesh);
+  EXPECT_EQ(model.cloud.size(), ply.size());
+}
+
+TEST(XyzReader, DepthImageSavedAsXyzGetsItsPixelsBack) {
+  constexpr float kF = 550.0f, kCx = 99.5f, kCy = 74.5f;
+  PointCloud image;
+  std::vector<std::int32_t> pixels;
+  std::string text;  // every pixel, a hole as NaN or as (0, 0, 0) as depth SDKs write them
+  for (int v = 0; v < 150; ++v)
+    for (int u = 0; u < 200; ++u) {
+      if ((u * 7 + v * 3) % 11 == 0) {
+        text += (u % 2 == 0) ? "nan nan nan\n" : "0 0 0\n";
+        continue;
+      }
+      const float z = 700.0f + 0.3f * float(u) + 2.0f * std::sin(0.1f * float(v));
+      image.points.emplace_back((float(u) - kCx) / kF * z, (float(v) - kCy) / kF * z, z);
+      pixels.push_back(v * 200 + u);
+      text += fmt::format("{:.6f} {:.6f} {:.6f}\n", image.points.back().x(), image.points.back().y(), z);
+    }
+  const std::string path = test::tempPath("image.xyz");
+  test::writeAll(path, "# a depth image, every pixel\n" + text);
+  const PointCloud back = readXyz(path);
+  ASSERT_TRUE(back.organized());
+  EXPECT_NEAR(back.fx, kF, 1e-2f);
+  EXPECT_NEAR(back.cx, kCx, 1e-2f);
+  EXPECT_EQ(back.width, 200);
+  EXPECT_EQ(back.pixel, pixels);
+  expectSameCloud(image, back, false);
+}
+
+TEST(XyzReader, BrokenFilesGiveOneLineErrors) {
+  const std::string path = test::tempPath("broken.xyz");
+  const auto errorFor = [&](const std::string& text) {
+    test::writeAll(path, text);
+    return errorOf([&] { readXyz(path); });
+  };
+  EXPECT_NE(errorFor("1 2 3\n4 5 6\n7 eight 9\n").find("line 3: '7 eight 9' is not a row of numbers"), std::string::npos);
+  EXPECT_NE(errorFor("1 2 3\n4 5\n").find("line 2: 2 values, 3 expected"), std::string::npos);
+  EXPECT_NE(errorFor("# nothing but comments\n\n").find("no point"), std::string::npos);
+  EXPECT_NE(errorFor("a,b,c\n1,2,3\n").find("names no x, y and z"), std::string::npos);
+  EXPECT_NE(errorFor("x y z nx ny nz\n1 2 3 0 0 1\n1 2 3\n").find("line 3: 3 values, 6 expected"), std::string::npos);
+  EXPECT_NE(errorFor("1 2 inf\n").find("line 1: a coordinate is out of range"), std::string::npos);
+  EXPECT_NE(errorFor("1 2 1e300\n").find("out of range"), std::string::npos);
+  const std::string e = errorFor("1 2 3\nx\ty\n");
+  EXPECT_NE(e.find(path), std::string::npos) << "the error names the file";
+  EXPECT_EQ(e.find('\n'), std::string::npos) << "one line";
+  EXPECT_NE(errorOf([&] { readXyz(test::tempPath("absent.xyz")); }).find("no such file"), std::string::npos);
+  test::writeAll(path, "x y z nx ny nz\n1 2 3 0 0 0\n4 5 6 0 3 4\n");  // a zero normal is missing
+  const PointCloud c = readXyz(path);
+  ASSERT_EQ(c.size(), 2u);
+  EXPECT_EQ(c.normals[0], Vec3::Zero());
+  EXPECT_NEAR((c.normals[1] - Vec3(0, 0.6f, 0.8f)).norm(), 0.0f, 1e-6f);
+}
+
 // ---- PCD ------------------------------------------------------------------------------------
 
 TEST(PcdReader, MilkSceneBinaryCompressedOrganized) {

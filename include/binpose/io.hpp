@@ -29,6 +29,14 @@ PointCloud readPlyCloud(const std::string& path, double scale = 1.0);
 /// non-finite coordinate are dropped; normal_x/y/z are read when present.
 PointCloud readPcd(const std::string& path, double scale = 1.0);
 
+/// ASCII point cloud, one point a line (.xyz, .txt, .csv, .asc, .pts): columns split by spaces,
+/// tabs, commas or semicolons; '#', '%' and "//" lines are comments. A header line (or a comment
+/// before the data) naming x, y, z (and nx, ny, nz) sets the columns; without one x y z come
+/// first, and columns 4-6 are normals when every row holds a unit vector there (so "x y z r g b"
+/// keeps no normals). A first line of one number (a .pts point count) is skipped; "nan" and
+/// (0, 0, 0) points are dropped as points without a measurement.
+PointCloud readXyz(const std::string& path, double scale = 1.0);
+
 /// OFF (Geomview): "OFF", the vertex and face counts, x y z per vertex (further values ignored),
 /// then n i_1 .. i_n per face (fan-triangulated; colour values after them ignored).
 Mesh readOffMesh(const std::string& path, double scale = 1.0);
@@ -37,7 +45,11 @@ Mesh readOffMesh(const std::string& path, double scale = 1.0);
 /// by assimp.
 Mesh readMesh(const std::string& path, double scale = 1.0);
 
-/// Any scan or model as a point cloud, by extension: .ply, .pcd, or a mesh format (its vertices).
+/// Whether readXyz reads this file (by its extension).
+bool isXyzPath(const std::string& path);
+
+/// Any scan or model as a point cloud, by extension: .ply, .pcd, an ASCII point file (readXyz),
+/// or a mesh format (its vertices).
 PointCloud readCloud(const std::string& path, double scale = 1.0);
 
 /// A model file: a mesh when it has faces (`mesh` set), otherwise a point cloud.
@@ -46,7 +58,8 @@ struct ModelFile {
   Mesh mesh;
   PointCloud cloud;
 };
-/// .ply with faces and mesh formats give a mesh; .pcd and .ply without faces a cloud.
+/// .ply with faces and mesh formats give a mesh; .pcd, ASCII point files and .ply without faces a
+/// cloud.
 ModelFile readModelFile(const std::string& path, double scale = 1.0);
 
 /// Pinhole intrinsics of a depth sensor. depth_scale converts a raw depth value to millimetres

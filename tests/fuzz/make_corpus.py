@@ -2,7 +2,7 @@
 """Writes the fuzz harnesses' seed corpora (tests/fuzz/corpus/<harness>/): small files of every
 variant the readers accept (PLY ascii / little / big endian with faces and extra properties,
 PCD ascii / binary / binary_compressed organized or not, 16-bit PNG and both camera JSON forms,
-STL / OBJ / OFF), written here from scratch so that no third-party data enters the repository.
+STL / OBJ / OFF, ASCII point files), written here from scratch so that no third-party data enters the repository.
 scripts/fuzz.sh adds the heads of ../shared/data's real files at run time. The database seed
 comes from `binpose train` (pass the binary as the first argument)."""
 import os
@@ -93,6 +93,15 @@ def mesh_files():
     write("mesh", "tetra_off", b"\x02" + off.encode())
 
 
+def xyz_files():
+    write("xyz", "plain", "".join(f"{x} {y} {z}\n" for x, y, z in TETRA))
+    write("xyz", "csv_header_normals", "x,y,z,nx,ny,nz\n" + "".join(f"{x},{y},{z},0,0,1\n" for x, y, z in TETRA))
+    write("xyz", "comment_header_rgb", "//X;Y;Z;R;G;B\n" + "".join(f"{x};{y};{z};200;10;30\n" for x, y, z in TETRA))
+    write("xyz", "pts_count_nan", "5\n" + "".join(f"{x}\t{y}\t{z}\t0.5\n" for x, y, z in TETRA) + "nan nan nan 0\n")
+    rows = [(u, v) for v in range(4) for u in range(5)]  # a small depth image in its camera's frame
+    write("xyz", "image", "".join(f"{(u - 2) / 500 * 800:.4f} {(v - 1.5) / 500 * 800:.4f} 800\n" for u, v in rows))
+
+
 def bpdb_files(binpose):
     path = os.path.join(HERE, "corpus", "box.tmp")
     subprocess.run([binpose, "train", "--model", "builtin:box", "--out", path, "--points", "16",
@@ -107,5 +116,6 @@ if __name__ == "__main__":
     pcd_files()
     depth_files()
     mesh_files()
+    xyz_files()
     if len(sys.argv) > 1:
         bpdb_files(sys.argv[1])
