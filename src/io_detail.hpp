@@ -21,6 +21,10 @@ std::string readFileBytes(const std::string& path);
 /// PNG_FORMAT_RGB or PNG_FORMAT_LINEAR_Y) as a PNG file; throws binpose::Error on failure.
 void writePng(const std::string& path, int width, int height, std::uint32_t format, const void* pixels);
 
+/// A mesh file other than PLY (OFF by binpose, others by assimp) as it stands: its faces may be
+/// none (an OBJ of vertices alone, a point cloud), its vertices neither welded nor checked.
+Mesh readMeshFile(const std::string& path, double scale);
+
 /// Lower-cased file extension without the dot ("" when none).
 std::string extensionOf(const std::string& path);
 

@@ -43,24 +43,27 @@ void appendNode(const std::string& path, const aiScene& scene, const aiNode& nod
 
 }  // namespace
 
-Mesh readMesh(const std::string& path, double scale) {
-  const std::string extension = detail::extensionOf(path);
-  if (extension == "ply") return readPlyMesh(path, scale);
-  if (extension == "off") {
-    Mesh mesh = readOffMesh(path, scale);
-    if (mesh.faces.empty()) detail::fail(path, "mesh has no triangles");
-    weldVertices(mesh);
-    return mesh;
-  }
-  detail::readFileBytes(path);  // same "no such file" / "empty" errors as the other readers
+namespace detail {
+
+Mesh readMeshFile(const std::string& path, double scale) {
+  if (extensionOf(path) == "off") return readOffMesh(path, scale);
+  readFileBytes(path);  // same "no such file" / "empty" errors as the other readers
   Assimp::Importer importer;
-  // No post-processing: identical vertices are welded and polygons split below. Vertex normals
+  // No post-processing: identical vertices are welded and polygons split here. Vertex normals
   // of the file are not read: model normals come from the faces (chapter 6).
   const aiScene* scene = importer.ReadFile(path, 0);
   if (scene == nullptr || scene->mRootNode == nullptr)
-    detail::fail(path, fmt::format("cannot read mesh ({})", importer.GetErrorString()));
+    fail(path, fmt::format("cannot read mesh ({})", importer.GetErrorString()));
   Mesh mesh;
   appendNode(path, *scene, *scene->mRootNode, aiMatrix4x4(), scale, 0, mesh);
+  return mesh;
+}
+
+}  // namespace detail
+
+Mesh readMesh(const std::string& path, double scale) {
+  if (detail::extensionOf(path) == "ply") return readPlyMesh(path, scale);
+  Mesh mesh = detail::readMeshFile(path, scale);
   if (mesh.faces.empty()) detail::fail(path, "mesh has no triangles");
   for (std::size_t i = 0; i < mesh.vertices.size(); ++i)
     if (!mesh.vertices[i].allFinite()) detail::fail(path, fmt::format("vertex {} has a non-finite coordinate", i));

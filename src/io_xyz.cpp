@@ -1,6 +1,7 @@
 // ASCII point clouds, one point a line (.xyz, .txt, .csv, .asc, .pts): what laser-scanner and
 // point-cloud tools (CloudCompare, MeshLab, a line scanner's export) write when no PLY is asked.
-// Columns split by spaces, tabs, commas or semicolons; x y z first unless a header names them.
+// Columns split by commas or semicolons, else by spaces and tabs; x y z first unless a header
+// names them.
 #include "io_detail.hpp"
 #include "pinhole_fit.hpp"
 
@@ -28,19 +29,24 @@ struct Columns {
   std::array<int, 3> normal{-1, -1, -1};
 };
 
-bool isSeparator(char c) { return std::isspace(static_cast<unsigned char>(c)) || c == ',' || c == ';'; }
+std::string_view trimmed(std::string_view field) {
+  const std::size_t first = field.find_first_not_of(" \t\r");
+  if (first == std::string_view::npos) return {};
+  return field.substr(first, field.find_last_not_of(" \t\r") - first + 1);
+}
 
-/// A line split at separators (empty fields between two commas are skipped).
+/// A line's fields: split at commas and semicolons when it holds any (each field trimmed, an
+/// empty one kept: a value left out), else at spaces and tabs.
 std::vector<std::string_view> fieldsOf(std::string_view line) {
   std::vector<std::string_view> fields;
-  std::size_t i = 0;
-  while (i < line.size()) {
-    while (i < line.size() && isSeparator(line[i])) ++i;
-    const std::size_t start = i;
-    while (i < line.size() && !isSeparator(line[i])) ++i;
-    if (i > start) fields.push_back(line.substr(start, i - start));
+  if (line.find_first_of(",;") != std::string_view::npos) {
+    std::size_t start = 0;
+    for (std::size_t end; (end = line.find_first_of(",;", start)) != std::string_view::npos; start = end + 1)
+      fields.push_back(trimmed(line.substr(start, end - start)));
+    if (!trimmed(line.substr(start)).empty()) fields.push_back(trimmed(line.substr(start)));  // not after a final comma
+    return fields;
   }
-  return fields;
+  return detail::splitWords(line);
 }
 
 bool isComment(std::string_view line) {
@@ -57,8 +63,9 @@ std::string lower(std::string_view text) {
 /// The column named one of `names` in a header row, else -1.
 int columnNamed(const std::vector<std::string_view>& header, std::initializer_list<const char*> names) {
   for (std::size_t c = 0; c < header.size(); ++c) {
-    std::string word = lower(header[c]);
-    if (word.size() >= 2 && word.front() == '"' && word.back() == '"') word = word.substr(1, word.size() - 2);
+    std::string_view field = header[c];
+    while (!field.empty() && (field.front() == '"' || field.front() == '\'')) field.remove_prefix(1);
+    const std::string word = lower(field.substr(0, field.find_first_of(" \t([\"'")));  // "X [mm]": x
     for (const char* name : names)
       if (word == name) return static_cast<int>(c);
   }
@@ -105,8 +112,8 @@ bool namesColumns(std::string_view comment) {
 bool appendNumbers(const std::vector<std::string_view>& fields, Rows& rows) {
   const std::size_t start = rows.values.size();
   for (const std::string_view field : fields) {
-    double value = 0.0;
-    if (!detail::parseNumber(field, value)) {  // "nan" parses: a field without a measurement
+    double value = std::numeric_limits<double>::quiet_NaN();     // an empty field: no measurement
+    if (!field.empty() && !detail::parseNumber(field, value)) {  // "nan" parses as NaN too
       rows.values.resize(start);
       return false;
     }

@@ -350,6 +350,12 @@ TEST(XyzReader, BrokenFilesGiveOneLineErrors) {
   EXPECT_NE(e.find(path), std::string::npos) << "the error names the file";
   EXPECT_EQ(e.find('\n'), std::string::npos) << "one line";
   EXPECT_NE(errorOf([&] { readXyz(test::tempPath("absent.xyz")); }).find("no such file"), std::string::npos);
+  // Units in the header's names, a value left out (no measurement), a final comma.
+  test::writeAll(path, "\"X [mm]\", \"Y [mm]\", \"Z [mm]\"\n1.5, 2, 3,\n4,,6\n7, 8, 9\n");
+  const PointCloud csv = readXyz(path);
+  ASSERT_EQ(csv.size(), 2u);
+  EXPECT_EQ(csv.points[0], Vec3(1.5f, 2, 3));
+  EXPECT_EQ(csv.points[1], Vec3(7, 8, 9));
   test::writeAll(path, "x y z nx ny nz\n1 2 3 0 0 0\n4 5 6 0 3 4\n");  // a zero normal is missing
   const PointCloud c = readXyz(path);
   ASSERT_EQ(c.size(), 2u);
@@ -491,6 +497,21 @@ TEST(MeshReader, StlAndErrors) {
   const std::string junk = test::tempPath("junk.obj");
   test::writeAll(junk, "this is not a mesh\n");
   EXPECT_NE(errorOf([&] { readMesh(junk); }).find(junk), std::string::npos);
+}
+
+// A scan saved as an OBJ of vertices alone (a point cloud tool's export) is a scan, not an error;
+// as a model it is still no mesh.
+TEST(MeshReader, ObjOfVerticesAloneIsAScan) {
+  REQUIRE_DATA("uwa/rs1_normals.ply");
+  const PointCloud ply = readPlyCloud(dataPath("uwa/rs1_normals.ply"));
+  std::string text = "# vertices only\n";
+  for (const Vec3& p : ply.points) text += fmt::format("v {:.6f} {:.6f} {:.6f}\n", p.x(), p.y(), p.z());
+  const std::string obj = test::tempPath("rs1_points.obj");
+  test::writeAll(obj, text);
+  const PointCloud back = readCloud(obj);
+  ASSERT_EQ(back.size(), ply.size());
+  for (std::size_t i = 0; i < ply.size(); ++i) ASSERT_LT((back.points[i] - ply.points[i]).norm(), 1e-4f) << i;
+  EXPECT_NE(errorOf([&] { readMesh(obj); }).find("mesh has no triangles"), std::string::npos);
 }
 
 // OFF is read by binpose (assimp's importer is not safe on crafted files): comments, counts on

@@ -29,12 +29,13 @@ PointCloud readPlyCloud(const std::string& path, double scale = 1.0);
 /// non-finite coordinate are dropped; normal_x/y/z are read when present.
 PointCloud readPcd(const std::string& path, double scale = 1.0);
 
-/// ASCII point cloud, one point a line (.xyz, .txt, .csv, .asc, .pts): columns split by spaces,
-/// tabs, commas or semicolons; '#', '%' and "//" lines are comments. A header line (or a comment
-/// before the data) naming x, y, z (and nx, ny, nz) sets the columns; without one x y z come
-/// first, and columns 4-6 are normals when every row holds a unit vector there (so "x y z r g b"
-/// keeps no normals). A first line of one number (a .pts point count) is skipped; "nan" and
-/// (0, 0, 0) points are dropped as points without a measurement.
+/// ASCII point cloud, one point a line (.xyz, .txt, .csv, .asc, .pts): columns split by commas or
+/// semicolons (an empty field is a value left out: NaN), else by spaces and tabs; '#', '%' and
+/// "//" lines are comments. A header line (or a comment before the data) naming x, y, z (and nx,
+/// ny, nz; "X [mm]" names x) sets the columns; without one x y z come first, and columns 4-6 are
+/// normals when every row holds a unit vector there (so "x y z r g b" keeps no normals). A first
+/// line of one number (a .pts point count) is skipped; points with a NaN coordinate or at (0, 0,
+/// 0) are dropped as points without a measurement.
 PointCloud readXyz(const std::string& path, double scale = 1.0);
 
 /// OFF (Geomview): "OFF", the vertex and face counts, x y z per vertex (further values ignored),
@@ -48,8 +49,8 @@ Mesh readMesh(const std::string& path, double scale = 1.0);
 /// Whether readXyz reads this file (by its extension).
 bool isXyzPath(const std::string& path);
 
-/// Any scan or model as a point cloud, by extension: .ply, .pcd, an ASCII point file (readXyz),
-/// or a mesh format (its vertices).
+/// Any scan as a point cloud, by extension: .ply, .pcd, an ASCII point file (readXyz), or a mesh
+/// format (its vertices; an OBJ of vertices alone too). Points at NaN or the origin are dropped.
 PointCloud readCloud(const std::string& path, double scale = 1.0);
 
 /// A model file: a mesh when it has faces (`mesh` set), otherwise a point cloud.
