@@ -1,6 +1,5 @@
 #include "io_detail.hpp"
 
-#include <binpose/geometry.hpp>
 #include <binpose/io.hpp>
 
 #include <algorithm>
@@ -38,11 +37,7 @@ PointCloud readCloud(const std::string& path, double scale) {
   if (ext == "pcd") return readPcd(path, scale);
   if (isXyzPath(path)) return readXyz(path, scale);
   Mesh mesh = detail::readMeshFile(path, scale);  // a scan saved as a mesh, or as vertices alone
-  if (!mesh.faces.empty()) {
-    for (std::size_t i = 0; i < mesh.vertices.size(); ++i)
-      if (!mesh.vertices[i].allFinite()) detail::fail(path, fmt::format("vertex {} has a non-finite coordinate", i));
-    weldVertices(mesh);
-  }
+  if (!mesh.faces.empty()) detail::weldChecked(path, mesh);
   PointCloud cloud;
   for (const Vec3& p : mesh.vertices)
     if (isMeasured(p)) cloud.points.push_back(p);  // NaN or the origin: a pixel without a depth

@@ -24,6 +24,8 @@ void writePng(const std::string& path, int width, int height, std::uint32_t form
 /// A mesh file other than PLY (OFF by binpose, others by assimp) as it stands: its faces may be
 /// none (an OBJ of vertices alone, a point cloud), its vertices neither welded nor checked.
 Mesh readMeshFile(const std::string& path, double scale);
+/// A mesh file's vertices checked (a non-finite one is an error) and identical ones welded.
+void weldChecked(const std::string& path, Mesh& mesh);
 
 /// Lower-cased file extension without the dot ("" when none).
 std::string extensionOf(const std::string& path);

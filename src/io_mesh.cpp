@@ -59,15 +59,19 @@ Mesh readMeshFile(const std::string& path, double scale) {
   return mesh;
 }
 
+void weldChecked(const std::string& path, Mesh& mesh) {
+  for (std::size_t i = 0; i < mesh.vertices.size(); ++i)
+    if (!mesh.vertices[i].allFinite()) fail(path, fmt::format("vertex {} has a non-finite coordinate", i));
+  weldVertices(mesh);
+}
+
 }  // namespace detail
 
 Mesh readMesh(const std::string& path, double scale) {
   if (detail::extensionOf(path) == "ply") return readPlyMesh(path, scale);
   Mesh mesh = detail::readMeshFile(path, scale);
   if (mesh.faces.empty()) detail::fail(path, "mesh has no triangles");
-  for (std::size_t i = 0; i < mesh.vertices.size(); ++i)
-    if (!mesh.vertices[i].allFinite()) detail::fail(path, fmt::format("vertex {} has a non-finite coordinate", i));
-  weldVertices(mesh);
+  detail::weldChecked(path, mesh);
   return mesh;
 }
 

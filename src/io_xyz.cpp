@@ -102,9 +102,8 @@ std::string_view commentText(std::string_view line) {
   return line;
 }
 
-/// A comment line that names the columns (CloudCompare's "//X,Y,Z,R,G,B", "# x y z nx ny nz").
-bool namesColumns(std::string_view comment) {
-  const auto fields = fieldsOf(comment);
+/// Whether a comment's fields name the columns (CloudCompare's "//X,Y,Z,R,G,B", "# x y z nx ny nz").
+bool namesColumns(const std::vector<std::string_view>& fields) {
   return columnNamed(fields, {"x"}) >= 0 && columnNamed(fields, {"y"}) >= 0 && columnNamed(fields, {"z"}) >= 0;
 }
 
@@ -136,7 +135,9 @@ Rows readRows(const std::string& path, std::string_view text) {
     const bool before_data = rows.size() == 0;
     if (line.find_first_not_of(" \t\r") == std::string_view::npos) continue;
     if (isComment(line)) {
-      if (before_data && rows.header.empty() && namesColumns(commentText(line))) rows.header = fieldsOf(commentText(line));
+      if (!before_data || !rows.header.empty()) continue;
+      const auto fields = fieldsOf(commentText(line));
+      if (namesColumns(fields)) rows.header = fields;
       continue;
     }
     const auto fields = fieldsOf(line);
@@ -202,7 +203,7 @@ PointCloud readXyz(const std::string& path, double scale) {
     cloud.points.push_back(p);
     if (!with_normals) continue;
     Vec3 n = pointOf(path, rows.row(i), cols.normal, line, 1.0);
-    if (!n.allFinite() || !normalizeSafe(n)) n.setZero();  // a zero normal is a missing normal
+    if (!normalizeSafe(n)) n.setZero();  // a zero normal is a missing normal
     cloud.normals.push_back(n);
   }
   fitPixelLattice(cloud);  // a depth image saved in its camera's frame
