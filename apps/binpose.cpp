@@ -123,14 +123,17 @@ struct DetectOptions {
 void addScanOptions(CLI::App* d, DetectOptions& o) {
   d->add_option("--model", o.model, "Database (.bpdb) or a model to train on the fly (mesh, cloud, builtin:NAME)")->required();
   d->add_option("--scene", o.scene,
-                "Scan: PLY, PCD, ASCII points (.xyz/.txt/.csv/.asc/.pts), or a 16-bit depth PNG (with --intrinsics)")
+                "Scan: PLY, PCD, ASCII points (.xyz/.txt/.csv/.asc/.pts), a TIFF point map, or a depth image (16-bit PNG, or "
+                "TIFF, with --intrinsics)")
       ->required();
-  d->add_option("--intrinsics", o.intrinsics, "BOP camera.json or scene_camera.json for a depth PNG");
+  d->add_option("--intrinsics", o.intrinsics, "BOP camera.json or scene_camera.json for a depth image (PNG or TIFF)");
   d->add_option("--image-id", o.image_id, "Entry of scene_camera.json (default: the first)");
   d->add_option("--preset", o.preset, "Parameter preset: default, or thesis (chapter 5 as written); fast: an alias of default")
       ->check(CLI::IsMember({"default", "fast", "thesis"}))->capture_default_str();
   d->add_option("--params", o.params_file, "JSON file of parameters (absolute units, mm), applied after the preset");
-  d->add_option("--units", o.units, "Length unit of the scene file: mm, m, or auto (mm, unless the scene spans less than half the model's diameter: then m, with a note)")
+  d->add_option("--units", o.units,
+                "Length unit of the scene file (of a depth image: its values times depth_scale): mm, m, or auto (mm, unless the "
+                "scene spans less than half the model's diameter: then m, with a note)")
       ->check(CLI::IsMember({"auto", "mm", "m"}))
       ->capture_default_str();
   d->add_option("--model-units", o.model_units, "Length unit of a model file trained on the fly: mm, m, or auto (as train's --units)")
@@ -223,21 +226,28 @@ binpose::ModelDatabase loadOrTrain(const DetectOptions& o) {
   return binpose::ModelDatabase::build(model, binpose::defaultQuantization(model.diameter));
 }
 
-/// The scene, in millimetres. With --units auto a scene file (not a depth image, whose scale the
-/// camera file gives) that spans less than half the model's diameter cannot hold the part: it is
-/// one in metres, as many sensors' software writes, and is read again so, with a note.
+/// The scan file times `unit_scale`: a depth image (a PNG, or a TIFF given with --intrinsics) by
+/// its camera file (its values times depth_scale, times `unit_scale`), any other file as a cloud.
+binpose::PointCloud readScene(const DetectOptions& o, double unit_scale) {
+  const bool png = o.scene.size() > 4 && o.scene.substr(o.scene.size() - 4) == ".png";
+  if (png && o.intrinsics.empty()) throw binpose::Error(fmt::format("{}: a depth image needs --intrinsics", o.scene));
+  if (!png && (o.intrinsics.empty() || !binpose::isTiffPath(o.scene))) return binpose::readCloud(o.scene, unit_scale);
+  binpose::Intrinsics camera = binpose::readIntrinsics(o.intrinsics, o.image_id);
+  camera.depth_scale *= unit_scale;
+  return png ? binpose::readDepthPng(o.scene, camera) : binpose::readDepthTiff(o.scene, camera);
+}
+
+/// The scene, in millimetres. With --units auto a scan that spans less than half the model's
+/// diameter cannot hold the part: it is one in metres, as many sensors' software writes (or a
+/// depth image whose camera file gives metres a unit), and is read again so, with a note.
 binpose::PointCloud loadScene(const DetectOptions& o, float diameter) {
-  if (o.scene.size() > 4 && o.scene.substr(o.scene.size() - 4) == ".png") {
-    if (o.intrinsics.empty()) throw binpose::Error(fmt::format("{}: a depth image needs --intrinsics", o.scene));
-    return binpose::readDepthPng(o.scene, binpose::readIntrinsics(o.intrinsics, o.image_id));
-  }
-  if (o.units != "auto") return binpose::readCloud(o.scene, binpose::unitScale(binpose::parseUnits(o.units)));
-  binpose::PointCloud scan = binpose::readCloud(o.scene, 1.0);
+  if (o.units != "auto") return readScene(o, binpose::unitScale(binpose::parseUnits(o.units)));
+  binpose::PointCloud scan = readScene(o, 1.0);
   const float extent = binpose::boundsDiagonal(scan.points);
   if (extent > 0 && extent < binpose::kLeastScanShareOfPart * diameter) {
     fmt::print(stderr, "note: the scene spans {:.3g} units, less than half the model's {:.3g} mm: reading it in metres (--units mm keeps millimetres)\n",
                extent, diameter);
-    scan = binpose::readCloud(o.scene, binpose::unitScale(binpose::Units::Metres));
+    scan = readScene(o, binpose::unitScale(binpose::Units::Metres));
   }
   return scan;
 }

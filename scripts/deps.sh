@@ -4,7 +4,7 @@
 set -euo pipefail
 packages=(cmake ninja-build g++ pkg-config
           libeigen3-dev libnanoflann-dev libtbb-dev libcli11-dev nlohmann-json3-dev libfmt-dev
-          libassimp-dev libpng-dev zlib1g-dev liblzf-dev libgtest-dev libbenchmark-dev
+          libassimp-dev libpng-dev libtiff-dev zlib1g-dev liblzf-dev libgtest-dev libbenchmark-dev
           libbullet-dev libembree-dev gnuplot-nox
           python3-dev python3-numpy pybind11-dev python3-pytest python3-matplotlib
           clang libclang-rt-14-dev)  # clang + libFuzzer: the readers' fuzz harnesses (scripts/fuzz.sh)

@@ -36,6 +36,7 @@ PointCloud readCloud(const std::string& path, double scale) {
   if (ext == "ply") return readPlyCloud(path, scale);
   if (ext == "pcd") return readPcd(path, scale);
   if (isXyzPath(path)) return readXyz(path, scale);
+  if (isTiffPath(path)) return readTiffPointMap(path, scale);
   Mesh mesh = detail::readMeshFile(path, scale);  // a scan saved as a mesh, or as vertices alone
   if (!mesh.faces.empty()) detail::weldChecked(path, mesh);
   PointCloud cloud;

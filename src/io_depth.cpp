@@ -28,13 +28,17 @@ int imageSide(const std::string& path, double v, const char* what) {
   return static_cast<int>(v);
 }
 
-void validate(const std::string& path, const Intrinsics& k) {
+}  // namespace
+
+void detail::checkIntrinsics(const std::string& path, const Intrinsics& k) {
   if (!(k.fx > 0) || !(k.fy > 0) || !std::isfinite(k.fx) || !std::isfinite(k.fy))
     fail(path, fmt::format("focal lengths must be positive (fx={}, fy={})", k.fx, k.fy));
   if (!std::isfinite(k.cx) || !std::isfinite(k.cy)) fail(path, "principal point is not finite");
   if (!(k.depth_scale > 0) || !std::isfinite(k.depth_scale))
     fail(path, fmt::format("depth_scale must be positive, got {}", k.depth_scale));
 }
+
+namespace {
 
 /// The most pixels a depth image may have (a 12-megapixel sensor has a fifth of this).
 constexpr std::size_t kMostPixels = std::size_t{1} << 26;
@@ -116,32 +120,16 @@ Intrinsics readIntrinsics(const std::string& path, const std::string& image_id) 
   k.depth_scale = j.contains("depth_scale") ? number(path, j, "depth_scale") : 1.0;
   if (j.contains("width")) k.width = imageSide(path, number(path, j, "width"), "width");
   if (j.contains("height")) k.height = imageSide(path, number(path, j, "height"), "height");
-  validate(path, k);
+  detail::checkIntrinsics(path, k);
   return k;
 }
 
 PointCloud depthToCloud(const std::vector<std::uint16_t>& depth, int width, int height, const Intrinsics& k) {
-  PointCloud cloud;
-  cloud.width = width;
-  cloud.height = height;
-  cloud.fx = float(k.fx);
-  cloud.fy = float(k.fy);
-  cloud.cx = float(k.cx);
-  cloud.cy = float(k.cy);
-  cloud.has_viewpoint = true;  // the camera frame
-  for (int v = 0; v < height; ++v)
-    for (int u = 0; u < width; ++u) {
-      const std::uint16_t raw = depth[static_cast<std::size_t>(v) * width + u];
-      if (raw == 0) continue;  // no measurement
-      const double z = raw * k.depth_scale;
-      cloud.points.emplace_back(float((u - k.cx) * z / k.fx), float((v - k.cy) * z / k.fy), float(z));
-      cloud.pixel.push_back(v * width + u);
-    }
-  return cloud;
+  return detail::depthCloud(width, height, k, [&](std::size_t pixel) { return depth[pixel] * k.depth_scale; });
 }
 
 PointCloud readDepthPng(const std::string& path, const Intrinsics& k) {
-  validate(path, k);
+  detail::checkIntrinsics(path, k);
   const std::string bytes = detail::readFileBytes(path);
   checkDepthPng(path, bytes);  // before libpng reads or anything is allocated
   png_image image{};

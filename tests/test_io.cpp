@@ -13,6 +13,7 @@
 
 using namespace binpose;
 using test::dataPath;
+using test::errorOf;
 
 namespace {
 void expectUnitOrZero(const Points& normals, bool allow_zero = false) {
@@ -21,15 +22,6 @@ void expectUnitOrZero(const Points& normals, bool allow_zero = false) {
     if (allow_zero && len == 0.0f) continue;
     ASSERT_NEAR(len, 1.0f, 1e-5f) << "normal " << i;
   }
-}
-
-std::string errorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "(no error)";
 }
 
 /// Cuts a file to a fraction of its length in a temporary copy.

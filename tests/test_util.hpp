@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <functional>
 #include <fstream>
 #include <optional>
 #include <string>
@@ -65,6 +66,16 @@ auto onFreshThread(Run run) {
   std::optional<decltype(run())> out;
   std::thread([&] { tbb::task_arena(1).execute([&] { out.emplace(run()); }); }).join();
   return std::move(*out);
+}
+
+/// The message of the binpose::Error `f` throws, "(no error)" when it throws none.
+inline std::string errorOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "(no error)";
 }
 
 }  // namespace binpose::test

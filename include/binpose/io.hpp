@@ -49,8 +49,13 @@ Mesh readMesh(const std::string& path, double scale = 1.0);
 /// Whether readXyz reads this file (by its extension).
 bool isXyzPath(const std::string& path);
 
-/// Any scan as a point cloud, by extension: .ply, .pcd, an ASCII point file (readXyz), or a mesh
-/// format (its vertices; an OBJ of vertices alone too). Points at NaN or the origin are dropped.
+/// Whether a file is a TIFF (by its extension): a depth map (readDepthTiff) or a point map
+/// (readTiffPointMap).
+bool isTiffPath(const std::string& path);
+
+/// Any scan as a point cloud, by extension: .ply, .pcd, an ASCII point file (readXyz), a TIFF point
+/// map (readTiffPointMap), or a mesh format (its vertices; an OBJ of vertices alone too). Points at
+/// NaN or the origin are dropped.
 PointCloud readCloud(const std::string& path, double scale = 1.0);
 
 /// A model file: a mesh when it has faces (`mesh` set), otherwise a point cloud.
@@ -79,6 +84,15 @@ Intrinsics readIntrinsics(const std::string& path, const std::string& image_id =
 /// 16-bit grayscale PNG depth image into an organized cloud in the camera frame (mm); pixels
 /// with depth 0 are dropped.
 PointCloud readDepthPng(const std::string& path, const Intrinsics& intrinsics);
+/// TIFF depth map (.tif, .tiff; one value a pixel: 16- or 32-bit integer, 32- or 64-bit float; in
+/// strips, any compression libtiff reads), as industrial 3-D cameras' software exports it, into an
+/// organized cloud in the camera frame (mm: value * depth_scale); pixels at 0, below it, NaN or
+/// infinite are dropped. A file of several pages gives its first.
+PointCloud readDepthTiff(const std::string& path, const Intrinsics& intrinsics);
+/// TIFF point map: x, y, z (a fourth value ignored) as 32- or 64-bit floats each pixel, in the
+/// camera's frame (mm times `scale`), into an organized cloud whose pinhole is fitted to its pixels'
+/// rays; pixels at NaN or the origin are dropped.
+PointCloud readTiffPointMap(const std::string& path, double scale = 1.0);
 /// The cloud of a depth image already in memory (row-major, width*height raw values).
 PointCloud depthToCloud(const std::vector<std::uint16_t>& depth, int width, int height,
                         const Intrinsics& intrinsics);

@@ -69,8 +69,38 @@ def png16(width, height, values):
             + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
 
 
+def tiff(width, height, samples, fmt, sample_format, values, compression=1, payload=None):
+    """Little-endian TIFF of one strip: `samples` values a pixel packed by struct `fmt` (SampleFormat
+    1 unsigned, 2 signed, 3 float); `payload` replaces the packed strip (a compressed one)."""
+    strip = payload if payload is not None else b"".join(struct.pack("<" + fmt, v) for v in values)
+    bits = struct.calcsize(fmt) * 8
+    tags = [(256, 4, [width]), (257, 4, [height]), (258, 3, [bits] * samples), (259, 3, [compression]),
+            (262, 3, [2 if samples == 3 else 1]), (273, 4, [0]), (277, 3, [samples]), (278, 4, [height]),
+            (279, 4, [len(strip)]), (284, 3, [1]), (339, 3, [sample_format] * samples)]
+    ifd_size = 2 + 12 * len(tags) + 4
+    extra = b""
+    entries = b""
+    base = 8 + ifd_size
+    for tag, kind, vals in tags:
+        packed = b"".join(struct.pack("<H" if kind == 3 else "<I", v) for v in vals)
+        if len(packed) <= 4:
+            entries += struct.pack("<HHI", tag, kind, len(vals)) + packed.ljust(4, b"\0")
+        else:
+            entries += struct.pack("<HHII", tag, kind, len(vals), base + len(extra))
+            extra += packed
+    strip_at = base + len(extra)
+    entries = entries.replace(struct.pack("<HHII", 273, 4, 1, 0), struct.pack("<HHII", 273, 4, 1, strip_at))
+    return b"II*\0" + struct.pack("<I", 8) + struct.pack("<H", len(tags)) + entries + b"\0\0\0\0" + extra + strip
+
+
 def depth_files():
     write("depth", "depth_4x3", b"\x01" + png16(4, 3, [800, 801, 0, 802, 799, 800, 805, 0, 790, 800, 801, 802]))
+    depth = [800.0, 801.5, float("nan"), 802.0, 799.0, 0.0, 805.0, 800.5, 790.0, 800.0, 801.0, 3.4e38]
+    write("depth", "tiff_float_4x3", b"\x03" + tiff(4, 3, 1, "f", 3, depth))
+    write("depth", "tiff_uint16_deflate", b"\x03" + tiff(4, 3, 1, "H", 1, None, compression=8,
+          payload=zlib.compress(b"".join(struct.pack("<H", v) for v in [800, 801, 0, 802] * 3))))
+    points = [c for u, v in [(0, 0), (1, 0), (0, 1), (1, 1)] for c in ((u - 2) * 0.8, (v - 1.5) * 0.8, 400.0)]
+    write("depth", "tiff_points_2x2", b"\x03" + tiff(2, 2, 3, "d", 3, points))
     write("depth", "camera", b"\x00" + b'{"fx": 500, "fy": 500, "cx": 2, "cy": 1.5, "depth_scale": 0.1,'
           b' "width": 4, "height": 3}')
     write("depth", "scene_camera", b"\x00" + b'{"1": {"cam_K": [500, 0, 2, 0, 500, 1.5, 0, 0, 1],'
