@@ -219,9 +219,18 @@ class PyDetector {
     if (!scan.normals.empty()) scan.normals.resize(kept);
   }
 
-  /// The scan of N x 3 `points` (and `normals`, or None), mm, its rows without a measurement dropped; a
-  /// warning where they look like metres.
+  /// The scan of N x 3 `points` (and `normals`, or None), mm, its rows without a measurement
+  /// dropped; or of an H x W x 3 point map (a depth SDK's organized cloud), kept organized as a
+  /// depth image is. A warning where they look like metres.
   PointCloud cloudOf(const py::object& points, const py::object& normals) const {
+    py::array map = py::isinstance<py::array>(points) ? py::array(points) : py::array();
+    if (map && map.ndim() == 3 && map.shape(2) == 3) {
+      if (!normals.is_none()) throw Error("normals are not taken with an H x W x 3 point map (they are fitted to it)");
+      const int height = int(map.shape(0)), width = int(map.shape(1));
+      PointCloud scan = pointMapToCloud(pointsOf(map.reshape({py::ssize_t(-1), py::ssize_t(3)}), "points"), width, height);
+      warnIfMetres(scan);
+      return scan;
+    }
     PointCloud scan;
     scan.points = pointsOf(points, "points");
     if (!normals.is_none()) {
@@ -234,16 +243,22 @@ class PyDetector {
     return scan;
   }
 
+  /// An H x W depth image: uint16 as a depth PNG holds, or floats as depth SDKs give (NaN, 0 or
+  /// below: no measurement); value * depth_scale mm.
   static PointCloud depthCloud(const py::object& depth, double fx, double fy, double cx, double cy, double depth_scale) {
-    if (!py::isinstance<py::array>(depth) || py::array(depth).dtype().kind() != 'u' || py::array(depth).itemsize() != 2 ||
-        py::array(depth).ndim() != 2)
-      throw Error("depth must be an H x W numpy array of uint16");
-    const auto image = py::array_t<std::uint16_t, py::array::c_style | py::array::forcecast>::ensure(depth);
+    const py::array a = py::isinstance<py::array>(depth) ? py::array(depth) : py::array();
+    const char kind = a ? a.dtype().kind() : '?';
+    if (!a || a.ndim() != 2 || (kind != 'u' && kind != 'i' && kind != 'f'))
+      throw Error("depth must be an H x W numpy array of numbers (uint16 as a depth PNG holds, or floats)");
     Intrinsics camera;
     camera.fx = fx, camera.fy = fy, camera.cx = cx, camera.cy = cy, camera.depth_scale = depth_scale;
-    const int height = int(image.shape(0)), width = int(image.shape(1));
-    const std::vector<std::uint16_t> values(image.data(), image.data() + image.size());
-    return depthToCloud(values, width, height, camera);
+    const int height = int(a.shape(0)), width = int(a.shape(1));
+    if (kind == 'u' && a.itemsize() == 2) {
+      const auto image = py::array_t<std::uint16_t, py::array::c_style | py::array::forcecast>::ensure(a);
+      return depthToCloud(std::vector<std::uint16_t>(image.data(), image.data() + image.size()), width, height, camera);
+    }
+    const auto image = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(a);
+    return depthToCloud(std::vector<float>(image.data(), image.data() + image.size()), width, height, camera);
   }
 
   /// An N x 4 x 4 array (or a sequence of 4 x 4 ones) as rigid poses, else an error naming the pose.
@@ -400,11 +415,13 @@ PYBIND11_MODULE(binpose, m) {
            "preset: default or thesis; keyword parameters by DetectionParams's names (r, eta, e_gmax, C_n, ...), "
            "in mm, replacing the preset's values scaled to the model.")
       .def("detect", &PyDetector::detect, py::arg("points"), py::arg("normals") = py::none(), py::arg("viewpoint") = py::none(),
-           "points: N x 3 array in mm (rows of NaN or exactly (0, 0, 0), a pixel without a depth, are dropped); normals: N x 3 "
+           "points: N x 3 array in mm (rows of NaN or exactly (0, 0, 0), a pixel without a depth, are dropped), or an "
+           "H x W x 3 point map in the camera's frame (a depth SDK's organized cloud: read as a depth image); normals: N x 3 "
            "or None; viewpoint: (x, y, z) mm (None: the constructor's, else the "
            "origin when it can have seen the points, else guess_viewpoint's).")
       .def("detect_depth", &PyDetector::detectDepth, py::arg("depth"), py::arg("fx"), py::arg("fy"), py::arg("cx"), py::arg("cy"),
-           py::arg("depth_scale") = 1.0, "depth: H x W uint16 array; depth_mm = raw * depth_scale.")
+           py::arg("depth_scale") = 1.0,
+           "depth: H x W array, uint16 (as a depth PNG) or float (NaN, 0 or below: no depth); depth_mm = value * depth_scale.")
       .def("check", &PyDetector::check, py::arg("points"), py::arg("poses"), py::arg("viewpoint") = py::none(),
            "Why a part known to lie somewhere is or is not found: each of poses (N x 4 x 4, model -> scan, mm) refined "
            "and judged as detect judges its own. A list of dicts: refined (4 x 4), moved_mm, score, visible_support, "

@@ -1,5 +1,6 @@
 // Depth images (16-bit PNG) and pinhole intrinsics (BOP camera.json / scene_camera.json).
 #include "io_detail.hpp"
+#include "pinhole_fit.hpp"
 
 #include <binpose/io.hpp>
 
@@ -126,6 +127,23 @@ Intrinsics readIntrinsics(const std::string& path, const std::string& image_id) 
 
 PointCloud depthToCloud(const std::vector<std::uint16_t>& depth, int width, int height, const Intrinsics& k) {
   return detail::depthCloud(width, height, k, [&](std::size_t pixel) { return depth[pixel] * k.depth_scale; });
+}
+
+PointCloud depthToCloud(const std::vector<float>& depth, int width, int height, const Intrinsics& k) {
+  return detail::depthCloud(width, height, k, [&](std::size_t pixel) { return depth[pixel] * k.depth_scale; });
+}
+
+PointCloud pointMapToCloud(const Points& xyz, int width, int height) {
+  PointCloud cloud;
+  cloud.width = width;
+  cloud.height = height;
+  for (std::size_t p = 0; p < xyz.size(); ++p) {
+    if (!isMeasured(xyz[p])) continue;  // NaN or the origin: a pixel without a measurement
+    cloud.points.push_back(xyz[p]);
+    cloud.pixel.push_back(static_cast<std::int32_t>(p));
+  }
+  fitPinhole(cloud);  // a point map in its camera's frame: its points on their pixels' rays
+  return cloud;
 }
 
 PointCloud readDepthPng(const std::string& path, const Intrinsics& k) {

@@ -2,7 +2,6 @@
 // Mech-Mind, Ensenso, Basler): one value a pixel (a depth, 16- or 32-bit integer or float) or
 // three (x, y, z, float), stored in strips, read with libtiff.
 #include "io_detail.hpp"
-#include "pinhole_fit.hpp"
 
 #include <binpose/io.hpp>
 
@@ -143,25 +142,19 @@ PointCloud readTiffPointMap(const std::string& path, double scale) {
   TiffMap map(path);
   if (map.samples == 1)
     fail(path, "the TIFF holds one value a pixel (a depth map): it needs the camera's intrinsics (--intrinsics)");
-  PointCloud cloud;
-  cloud.width = map.width;
-  cloud.height = map.height;
+  Points xyz(std::size_t(map.width) * map.height, Vec3::Zero());
   std::vector<double> row;
   for (int v = 0; v < map.height; ++v) {
     map.readRow(v, row);
     for (int u = 0; u < map.width; ++u) {
       const double* x = &row[std::size_t(u) * map.samples];
-      if (!(std::abs(x[0] * scale) < detail::kFarthestMm && std::abs(x[1] * scale) < detail::kFarthestMm &&
-            std::abs(x[2] * scale) < detail::kFarthestMm))
-        continue;  // NaN, infinite, or a marker for a missing point (the largest float)
-      const Vec3 point(float(x[0] * scale), float(x[1] * scale), float(x[2] * scale));
-      if (!isMeasured(point)) continue;  // NaN or the origin: a pixel without a measurement
-      cloud.points.push_back(point);
-      cloud.pixel.push_back(v * map.width + u);
+      if (std::abs(x[0] * scale) < detail::kFarthestMm && std::abs(x[1] * scale) < detail::kFarthestMm &&
+          std::abs(x[2] * scale) < detail::kFarthestMm)  // else NaN, infinite, or a missing point's marker: none
+        xyz[std::size_t(v) * map.width + u] = Vec3(float(x[0] * scale), float(x[1] * scale), float(x[2] * scale));
     }
   }
+  PointCloud cloud = pointMapToCloud(xyz, map.width, map.height);
   if (cloud.empty()) fail(path, "no point in the file");
-  fitPinhole(cloud);  // a point map in its camera's frame: its points on their pixels' rays
   return cloud;
 }
 

@@ -96,6 +96,13 @@ PointCloud readTiffPointMap(const std::string& path, double scale = 1.0);
 /// The cloud of a depth image already in memory (row-major, width*height raw values).
 PointCloud depthToCloud(const std::vector<std::uint16_t>& depth, int width, int height,
                         const Intrinsics& intrinsics);
+/// The same for a depth image of floats (a depth SDK's array): value * depth_scale mm; values at
+/// or below 0, NaN, infinite or beyond 100 km are no measurement.
+PointCloud depthToCloud(const std::vector<float>& depth, int width, int height, const Intrinsics& intrinsics);
+/// An organized point map (width * height points, row-major, in the camera's frame, mm) as a cloud:
+/// points at NaN or the origin dropped, each kept one's pixel noted, and the pinhole fitted to its
+/// pixels' rays where they lie on them (as a depth image's do).
+PointCloud pointMapToCloud(const Points& xyz, int width, int height);
 /// Writes a 16-bit grayscale PNG (used by tests and the simulator).
 void writeDepthPng(const std::string& path, const std::vector<std::uint16_t>& depth, int width,
                    int height);

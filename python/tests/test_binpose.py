@@ -90,6 +90,27 @@ def test_same_answers_as_the_cli(caps):
         assert d.score == pytest.approx(c["score"], abs=1e-6)
 
 
+def test_float_depth_and_point_map_find_the_depth_pngs_caps(caps):
+    """The bin's depth as depth SDKs give it: floats in mm with NaN holes, and an H x W x 3 point
+    map (its pinhole fitted to its rays): the same points, the same answer from both, and the
+    same caps as from the 16-bit image (the float points differ from its by 1e-5 mm, which moves
+    the noise estimate by 2 % and the scores a little)."""
+    _, db, camera, truth, depth = caps
+    k = (camera["fx"], camera["fy"], camera["cx"], camera["cy"])
+    png = binpose.Detector(db).detect_depth(depth, *k, camera["depth_scale"])
+    z = np.where(depth > 0, depth * camera["depth_scale"], np.nan).astype(np.float32)
+    rows, cols = np.mgrid[0:depth.shape[0], 0:depth.shape[1]]
+    xyz = np.dstack([(cols - k[2]) * z / k[0], (rows - k[3]) * z / k[1], z]).astype(np.float32)
+    floats, point_map = binpose.Detector(db).detect_depth(z, *k), binpose.Detector(db).detect(xyz)
+    assert floats.scene_points == point_map.scene_points == png.scene_points
+    assert point_map.noise_mm == pytest.approx(floats.noise_mm, rel=1e-6)
+    assert [d.score for d in point_map] == pytest.approx([d.score for d in floats], abs=1e-4)
+    assert len(floats) == len(png) >= 3
+    for d in floats:
+        assert min(np.linalg.norm(d.pose[:3, 3] - p.pose[:3, 3]) for p in png) < 1.0
+        assert nearest_truth(d.pose, truth)[1] < 3.0
+
+
 def test_flying_pixels_at_a_step_are_dropped(caps):
     """A step from 700 to 760 mm whose column at the step reads a mix of the two on every other
     row: those 24 pixels lie on neither surface and are dropped; the surfaces' pixels stay."""
@@ -235,8 +256,12 @@ def test_bad_input_raises_value_error(tmp_path):
         detector.detect(np.array([["a", "b", "c"]]))
     with pytest.raises(ValueError, match="normals"):
         detector.detect(np.zeros((5, 3)), normals=np.zeros((4, 3)))
-    with pytest.raises(ValueError, match="uint16"):
-        detector.detect_depth(np.zeros((4, 4), np.float32), 500, 500, 2, 2)
+    with pytest.raises(ValueError, match="H x W numpy array of numbers"):
+        detector.detect_depth(np.zeros((4, 4, 2), np.float32), 500, 500, 2, 2)
+    with pytest.raises(ValueError, match="H x W numpy array of numbers"):
+        detector.detect_depth(np.zeros((4, 4), np.complex64), 500, 500, 2, 2)
+    with pytest.raises(ValueError, match="point map"):
+        detector.detect(np.zeros((4, 4, 3)), normals=np.zeros((4, 4, 3)))
     with pytest.raises(ValueError, match="viewpoint"):
         detector.detect(np.zeros((5, 3)), viewpoint=(0, 1))
     with pytest.raises(ValueError, match="whole indices"):
