@@ -4,6 +4,7 @@
 #include <binpose/evaluation.hpp>
 #include <binpose/geometry.hpp>
 #include <binpose/io.hpp>
+#include <binpose/scan_file.hpp>
 #include <binpose/model.hpp>
 #include <binpose/model_database.hpp>
 #include <binpose/render.hpp>
@@ -226,30 +227,15 @@ binpose::ModelDatabase loadOrTrain(const DetectOptions& o) {
   return binpose::ModelDatabase::build(model, binpose::defaultQuantization(model.diameter));
 }
 
-/// The scan file times `unit_scale`: a depth image (a PNG, or a TIFF given with --intrinsics) by
-/// its camera file (its values times depth_scale, times `unit_scale`), any other file as a cloud.
-binpose::PointCloud readScene(const DetectOptions& o, double unit_scale) {
-  const bool png = o.scene.size() > 4 && o.scene.substr(o.scene.size() - 4) == ".png";
-  if (png && o.intrinsics.empty()) throw binpose::Error(fmt::format("{}: a depth image needs --intrinsics", o.scene));
-  if (!png && (o.intrinsics.empty() || !binpose::isTiffPath(o.scene))) return binpose::readCloud(o.scene, unit_scale);
-  binpose::Intrinsics camera = binpose::readIntrinsics(o.intrinsics, o.image_id);
-  camera.depth_scale *= unit_scale;
-  return png ? binpose::readDepthPng(o.scene, camera) : binpose::readDepthTiff(o.scene, camera);
-}
-
-/// The scene, in millimetres. With --units auto a scan that spans less than half the model's
-/// diameter cannot hold the part: it is one in metres, as many sensors' software writes (or a
-/// depth image whose camera file gives metres a unit), and is read again so, with a note.
+/// The scene, in millimetres (loadScan), with a note where its unit was taken for metres.
 binpose::PointCloud loadScene(const DetectOptions& o, float diameter) {
-  if (o.units != "auto") return readScene(o, binpose::unitScale(binpose::parseUnits(o.units)));
-  binpose::PointCloud scan = readScene(o, 1.0);
-  const float extent = binpose::boundsDiagonal(scan.points);
-  if (extent > 0 && extent < binpose::kLeastScanShareOfPart * diameter) {
-    fmt::print(stderr, "note: the scene spans {:.3g} units, less than half the model's {:.3g} mm: reading it in metres (--units mm keeps millimetres)\n",
-               extent, diameter);
-    scan = readScene(o, binpose::unitScale(binpose::Units::Metres));
-  }
-  return scan;
+  const binpose::LoadedScan scan = binpose::loadScan({o.scene, o.intrinsics, o.image_id, o.units}, diameter);
+  if (scan.guessed_metres)
+    fmt::print(stderr,
+               "note: the scene spans {:.3g} units, less than half the model's {:.3g} mm: reading it in metres (--units mm keeps "
+               "millimetres)\n",
+               scan.extent_in_file_units, diameter);
+  return scan.cloud;
 }
 
 /// Warnings about a scene read: none of its points holds a measurement, or its extent says its

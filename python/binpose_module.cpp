@@ -7,6 +7,7 @@
 #include <binpose/model.hpp>
 #include <binpose/model_database.hpp>
 #include <binpose/params.hpp>
+#include <binpose/scan_file.hpp>
 #include <binpose/shapes.hpp>
 #include <binpose/viewpoint.hpp>
 
@@ -183,6 +184,18 @@ class PyDetector {
     return run(depthCloud(depth, fx, fy, cx, cy, depth_scale), py::none());
   }
 
+  PyResult detectFile(const std::string& path, const std::string& intrinsics, const std::string& image_id,
+                      const std::string& units, const py::object& viewpoint) {
+    const LoadedScan scan = loadScan({path, intrinsics, image_id, units}, db_->model().diameter);
+    if (scan.guessed_metres) {
+      const std::string text = fmt::format(
+          "{} spans {:.3g} units, less than half the model's {:.3g} mm: read in metres (units='mm' keeps millimetres)", path,
+          scan.extent_in_file_units, db_->model().diameter);
+      if (PyErr_WarnEx(PyExc_UserWarning, text.c_str(), 1) < 0) throw py::error_already_set();
+    }
+    return run(scan.cloud, viewpoint);
+  }
+
   py::list check(const py::object& points, const py::object& poses, const py::object& viewpoint) {
     return checked(cloudOf(points, py::none()), posesOf(poses), viewpoint);
   }
@@ -304,12 +317,16 @@ class PyDetector {
     return out;
   }
 
-  /// `viewpoint` None: the detector's own, or for points given without one (not a depth image)
-  /// the origin when it can have seen them, else a guess from them (guessViewpoint), as the CLI.
+  /// `viewpoint` None: the detector's own, else the scan's (a depth image's camera, a PCD's
+  /// VIEWPOINT), else the origin when it can have seen the points, else a guess from them
+  /// (guessViewpoint), as the CLI.
   void useViewpoint(const PointCloud& scan, const py::object& viewpoint) {
     std::optional<Vec3> wanted;
     if (!viewpoint.is_none()) wanted = viewpointOf(viewpoint);
-    else if (!scan.has_viewpoint && !viewpoint_given_) wanted = guessViewpoint(scan.points).viewpoint;
+    else if (scan.has_viewpoint && !viewpoint_given_)
+      wanted = scan.viewpoint;
+    else if (!viewpoint_given_)
+      wanted = guessViewpoint(scan.points).viewpoint;
     if (wanted && *wanted != params_.viewpoint) {
       params_.viewpoint = *wanted;
       detector_ = std::make_unique<Detector>(*db_, params_);
@@ -422,6 +439,12 @@ PYBIND11_MODULE(binpose, m) {
       .def("detect_depth", &PyDetector::detectDepth, py::arg("depth"), py::arg("fx"), py::arg("fy"), py::arg("cx"), py::arg("cy"),
            py::arg("depth_scale") = 1.0,
            "depth: H x W array, uint16 (as a depth PNG) or float (NaN, 0 or below: no depth); depth_mm = value * depth_scale.")
+      .def("detect_file", &PyDetector::detectFile, py::arg("path"), py::arg("intrinsics") = "", py::arg("image_id") = "",
+           py::arg("units") = "auto", py::arg("viewpoint") = py::none(),
+           "A scan file read as `binpose detect --scene` reads it: PLY, PCD, ASCII points, a TIFF point map, a mesh's "
+           "vertices, or a depth image (16-bit PNG, TIFF) with intrinsics (a BOP camera.json or scene_camera.json, "
+           "image_id its entry). units: 'mm', 'm', or 'auto' (mm, unless the scan spans less than half the model: m, "
+           "with a warning). The file's viewpoint is used where it gives one.")
       .def("check", &PyDetector::check, py::arg("points"), py::arg("poses"), py::arg("viewpoint") = py::none(),
            "Why a part known to lie somewhere is or is not found: each of poses (N x 4 x 4, model -> scan, mm) refined "
            "and judged as detect judges its own. A list of dicts: refined (4 x 4), moved_mm, score, visible_support, "

@@ -1,6 +1,7 @@
 // Readers on the real files of ../shared/data and on broken files.
 #include <binpose/geometry.hpp>
 #include <binpose/io.hpp>
+#include <binpose/scan_file.hpp>
 
 #include "pinhole_fit.hpp"
 #include "test_util.hpp"
@@ -589,4 +590,23 @@ TEST(Units, ParseAndScale) {
   EXPECT_EQ(unitScale(parseUnits("m")), 1000.0);
   EXPECT_EQ(unitScale(parseUnits("mm")), 1.0);
   EXPECT_THROW(parseUnits("cm"), Error);
+}
+
+TEST(ScanFile, DepthImageByItsCameraFileItsUnitGuessedFromThePart) {
+  REQUIRE_DATA("icbin_mixed/depth/0000.png");
+  const std::string png = dataPath("icbin_mixed/depth/0000.png"), camera = dataPath("icbin_mixed/camera.json");
+  const LoadedScan mm = loadScan({png, camera, "", "auto"}, 136.0f);
+  EXPECT_FALSE(mm.guessed_metres);
+  // The camera file giving metres a unit (depth_scale 0.001, as RealSense's SDK reports it).
+  nlohmann::json j = nlohmann::json::parse(test::readAll(camera));
+  j["depth_scale"] = 0.001;
+  const std::string in_metres = test::tempPath("camera_m.json");
+  test::writeAll(in_metres, j.dump());
+  const LoadedScan guessed = loadScan({png, in_metres, "", "auto"}, 136.0f);
+  EXPECT_TRUE(guessed.guessed_metres);
+  ASSERT_EQ(guessed.cloud.size(), mm.cloud.size());
+  for (std::size_t i = 0; i < mm.cloud.size(); i += 997) ASSERT_NEAR(guessed.cloud.points[i].z(), mm.cloud.points[i].z(), 1e-3f);
+  EXPECT_NEAR(loadScan({png, in_metres, "", "mm"}, 136.0f).cloud.points[0].z(), mm.cloud.points[0].z() / 1000.0f, 1e-6f);
+  EXPECT_NE(errorOf([&] { loadScan({png, "", "", "auto"}, 136.0f); }).find("needs its camera's intrinsics"), std::string::npos);
+  EXPECT_NE(errorOf([&] { loadScan({png, camera, "", "cm"}, 136.0f); }).find("'mm', 'm' or 'auto'"), std::string::npos);
 }

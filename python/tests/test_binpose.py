@@ -36,6 +36,18 @@ def caps(tmp_path_factory):
     return folder, db, camera, truth, depth
 
 
+def ply_points(path):
+    """The x, y, z of a binary little-endian PLY whose vertices hold three floats first."""
+    data = path.read_bytes()
+    head, body = data.split(b"end_header\n", 1)
+    lines = head.decode().splitlines()
+    count = int(next(l for l in lines if l.startswith("element vertex")).split()[2])
+    props = [l for l in lines if l.startswith("property")]
+    assert "binary_little_endian" in head.decode() and props[0].split()[1] == "float"
+    stride = 4 * len(props)  # every property a float or a 4-byte value
+    return np.frombuffer(body[:count * stride], np.float32).reshape(count, len(props))[:, :3].astype(np.float64)
+
+
 def nearest_truth(pose, truth):
     """The ground-truth instance nearest the pose's position, and the distance to it (mm)."""
     distances = [np.linalg.norm(np.array(t["pose"])[:3, 3] - pose[:3, 3]) for t in truth]
@@ -88,6 +100,31 @@ def test_same_answers_as_the_cli(caps):
     for d, c in zip(ours, cli):
         assert np.allclose(d.pose, np.array(c["pose"]), atol=1e-3)
         assert d.score == pytest.approx(c["score"], abs=1e-6)
+
+
+def test_detect_file_reads_scans_as_the_cli_does(caps):
+    """A depth PNG with its camera file gives the CLI's answer; the same bin as an XYZ file in
+    metres is read in metres, with a warning, and gives the same caps."""
+    folder, db, _, truth, _ = caps
+    out = folder / "cli_file.json"
+    subprocess.run([CLI, "detect", "--model", str(folder / "cap.bpdb"), "--scene", str(folder / "depth.png"),
+                    "--intrinsics", str(folder / "camera.json"), "--out", str(out)], check=True,
+                   stdout=subprocess.DEVNULL)
+    cli = json.loads(out.read_text())["detections"]
+    ours = binpose.Detector(db).detect_file(str(folder / "depth.png"), intrinsics=str(folder / "camera.json"))
+    assert len(ours) == len(cli) > 0
+    for d, c in zip(ours, cli):
+        assert np.allclose(d.pose, np.array(c["pose"]), atol=1e-3)
+    with pytest.raises(ValueError, match="needs its camera's intrinsics"):
+        binpose.Detector(db).detect_file(str(folder / "depth.png"))
+    ply = binpose.Detector(db).detect_file(str(folder / "scene.ply"))
+    points = ply_points(folder / "scene.ply")
+    np.savetxt(folder / "scene_m.xyz", points / 1000.0, fmt="%.7f")
+    with pytest.warns(UserWarning, match="read in metres"):
+        metres = binpose.Detector(db).detect_file(str(folder / "scene_m.xyz"))
+    assert len(metres) == len(ply) >= 3
+    for d in metres:
+        assert nearest_truth(d.pose, truth)[1] < 3.0
 
 
 def test_float_depth_and_point_map_find_the_depth_pngs_caps(caps):
