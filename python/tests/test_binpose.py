@@ -88,6 +88,7 @@ def test_detect_depth_finds_the_simulated_caps(caps):
 
 
 def test_same_answers_as_the_cli(caps):
+    """detect_depth on the image and detect_file on its PNG and camera file give the CLI's poses."""
     folder, db, camera, _, depth = caps
     out = folder / "cli.json"
     subprocess.run([CLI, "detect", "--model", str(folder / "cap.bpdb"), "--scene", str(folder / "depth.png"),
@@ -96,25 +97,18 @@ def test_same_answers_as_the_cli(caps):
     cli = json.loads(out.read_text())["detections"]
     ours = binpose.Detector(db).detect_depth(depth, camera["fx"], camera["fy"], camera["cx"], camera["cy"],
                                              camera["depth_scale"])
-    assert len(ours) == len(cli) > 0
-    for d, c in zip(ours, cli):
+    from_file = binpose.Detector(db).detect_file(str(folder / "depth.png"), intrinsics=str(folder / "camera.json"))
+    assert len(ours) == len(from_file) == len(cli) > 0
+    for d, f, c in zip(ours, from_file, cli):
         assert np.allclose(d.pose, np.array(c["pose"]), atol=1e-3)
+        assert np.allclose(f.pose, np.array(c["pose"]), atol=1e-3)
         assert d.score == pytest.approx(c["score"], abs=1e-6)
 
 
 def test_detect_file_reads_scans_as_the_cli_does(caps):
-    """A depth PNG with its camera file gives the CLI's answer; the same bin as an XYZ file in
-    metres is read in metres, with a warning, and gives the same caps."""
+    """A depth PNG needs its camera file; the bin as an XYZ file in metres is read in metres, with
+    a warning, and gives the same caps as its PLY."""
     folder, db, _, truth, _ = caps
-    out = folder / "cli_file.json"
-    subprocess.run([CLI, "detect", "--model", str(folder / "cap.bpdb"), "--scene", str(folder / "depth.png"),
-                    "--intrinsics", str(folder / "camera.json"), "--out", str(out)], check=True,
-                   stdout=subprocess.DEVNULL)
-    cli = json.loads(out.read_text())["detections"]
-    ours = binpose.Detector(db).detect_file(str(folder / "depth.png"), intrinsics=str(folder / "camera.json"))
-    assert len(ours) == len(cli) > 0
-    for d, c in zip(ours, cli):
-        assert np.allclose(d.pose, np.array(c["pose"]), atol=1e-3)
     with pytest.raises(ValueError, match="needs its camera's intrinsics"):
         binpose.Detector(db).detect_file(str(folder / "depth.png"))
     ply = binpose.Detector(db).detect_file(str(folder / "scene.ply"))
