@@ -127,7 +127,9 @@ void addScanOptions(CLI::App* d, DetectOptions& o) {
                 "Scan: PLY, PCD, ASCII points (.xyz/.txt/.csv/.asc/.pts), a TIFF point map, or a depth image (16-bit PNG, or "
                 "TIFF, with --intrinsics)")
       ->required();
-  d->add_option("--intrinsics", o.intrinsics, "BOP camera.json or scene_camera.json for a depth image (PNG or TIFF)");
+  d->add_option("--intrinsics", o.intrinsics,
+                "Camera JSON for a depth image (PNG or TIFF): BOP camera.json or scene_camera.json, or fx/fy/cx/cy or a 3 x 3 K, "
+                "camera_matrix or intrinsic_matrix, with depth_scale");
   d->add_option("--image-id", o.image_id, "Entry of scene_camera.json (default: the first)");
   d->add_option("--preset", o.preset, "Parameter preset: default, or thesis (chapter 5 as written); fast: an alias of default")
       ->check(CLI::IsMember({"default", "fast", "thesis"}))->capture_default_str();

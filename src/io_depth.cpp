@@ -4,7 +4,9 @@
 
 #include <binpose/io.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <Eigen/Core>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <png.h>
@@ -18,6 +20,41 @@ using nlohmann::json;
 double number(const std::string& path, const json& j, const char* key) {
   if (!j.contains(key) || !j[key].is_number()) fail(path, fmt::format("intrinsics lack a numeric '{}'", key));
   return j[key].get<double>();
+}
+
+/// Names under which camera files give the 3 x 3 camera matrix: BOP's cam_K, ROS CameraInfo's K
+/// (k in ROS 2), OpenCV's camera_matrix, Open3D's intrinsic_matrix (column-major).
+constexpr const char* kMatrixKeys[] = {"cam_K", "K", "k", "camera_matrix", "intrinsic_matrix"};
+
+const char* matrixKey(const json& j) {
+  for (const char* key : kMatrixKeys)
+    if (j.contains(key)) return key;
+  return nullptr;
+}
+
+/// Whether a JSON object is one camera (not a scene_camera.json's map of them).
+bool holdsCamera(const json& j) { return j.contains("fx") || matrixKey(j) != nullptr; }
+
+/// The camera matrix [fx s cx; 0 fy cy; 0 0 1] from 9 numbers (row- or column-major: the layout
+/// is told by where the zeros lie), 3 rows of 3, or OpenCV's {"rows": 3, "cols": 3, "data": [9]}.
+Eigen::Matrix3d cameraMatrix(const std::string& path, const char* key, const json& value) {
+  const json& data = value.is_object() && value.contains("data") ? value["data"] : value;
+  std::vector<double> v;
+  if (data.is_array())
+    for (const json& row : data) {
+      if (row.is_array())
+        for (const json& x : row) v.push_back(x.is_number() ? x.get<double>() : NAN);
+      else
+        v.push_back(row.is_number() ? row.get<double>() : NAN);
+    }
+  if (v.size() != 9 || !std::all_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); }))
+    fail(path, fmt::format("{} must hold 9 numbers (a 3 x 3 camera matrix)", key));
+  Eigen::Matrix3d K;
+  K << v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8];
+  if (K(1, 0) == 0 && K(2, 0) == 0 && K(2, 1) == 0 && (K(0, 2) != 0 || K(1, 2) != 0)) return K;
+  if (K(0, 1) == 0 && K(0, 2) == 0 && K(1, 2) == 0) return K.transpose();  // column-major (Open3D)
+  if (K(2, 0) == 0 && K(2, 1) == 0) return K;                              // principal point at the origin
+  fail(path, fmt::format("{} is no camera matrix [fx 0 cx; 0 fy cy; 0 0 1]", key));
 }
 
 /// The most pixels along an image side a camera file may claim.
@@ -100,7 +137,7 @@ Intrinsics readIntrinsics(const std::string& path, const std::string& image_id) 
   const json file = json::parse(text, nullptr, /*allow_exceptions=*/false);
   if (file.is_discarded() || !file.is_object()) fail(path, "not a JSON object");
   const json* entry = &file;
-  if (!file.contains("fx") && !file.contains("cam_K")) {  // scene_camera.json: {"<id>": {...}, ...}
+  if (!holdsCamera(file)) {  // scene_camera.json: {"<id>": {...}, ...}
     if (file.empty()) fail(path, "no camera entries");
     if (!image_id.empty() && !file.contains(image_id)) fail(path, fmt::format("no entry for image '{}'", image_id));
     entry = image_id.empty() ? &file.begin().value() : &file.at(image_id);
@@ -108,15 +145,16 @@ Intrinsics readIntrinsics(const std::string& path, const std::string& image_id) 
   }
   const json& j = *entry;
   Intrinsics k;
-  if (j.contains("cam_K")) {
-    const json& K = j["cam_K"];
-    if (!K.is_array() || K.size() != 9) fail(path, "cam_K must hold 9 numbers");
-    for (const auto& v : K) if (!v.is_number()) fail(path, "cam_K must hold 9 numbers");
-    k.fx = K[0].get<double>(); k.cx = K[2].get<double>();
-    k.fy = K[4].get<double>(); k.cy = K[5].get<double>();
+  if (const char* key = matrixKey(j)) {
+    const Eigen::Matrix3d K = cameraMatrix(path, key, j[key]);
+    k.fx = K(0, 0);
+    k.fy = K(1, 1);
+    k.cx = K(0, 2);
+    k.cy = K(1, 2);
   } else {
     k.fx = number(path, j, "fx"); k.fy = number(path, j, "fy");
-    k.cx = number(path, j, "cx"); k.cy = number(path, j, "cy");
+    k.cx = number(path, j, j.contains("ppx") ? "ppx" : "cx");  // ppx, ppy: RealSense's names
+    k.cy = number(path, j, j.contains("ppy") ? "ppy" : "cy");
   }
   k.depth_scale = j.contains("depth_scale") ? number(path, j, "depth_scale") : 1.0;
   if (j.contains("width")) k.width = imageSide(path, number(path, j, "width"), "width");

@@ -586,6 +586,35 @@ TEST(DepthReader, IntrinsicsFiles) {
   EXPECT_NE(errorOf([&] { readIntrinsics(scene); }).find("not a JSON object"), std::string::npos);
 }
 
+TEST(DepthReader, CameraFilesOfOtherTools) {
+  const std::string path = test::tempPath("camera_other.json");
+  const auto read = [&](const std::string& text) {
+    test::writeAll(path, text);
+    return readIntrinsics(path);
+  };
+  const auto expectCamera = [](const Intrinsics& k, int width) {
+    EXPECT_DOUBLE_EQ(k.fx, 615.5);
+    EXPECT_DOUBLE_EQ(k.fy, 616.25);
+    EXPECT_DOUBLE_EQ(k.cx, 321.75);
+    EXPECT_DOUBLE_EQ(k.cy, 238.5);
+    EXPECT_EQ(k.width, width);
+  };
+  // Open3D's PinholeCameraIntrinsic (column-major).
+  expectCamera(read(R"({"width": 640, "height": 480, "intrinsic_matrix": [615.5, 0, 0, 0, 616.25, 0, 321.75, 238.5, 1]})"), 640);
+  // ROS CameraInfo (row-major K; k in ROS 2) and OpenCV's FileStorage matrix.
+  expectCamera(read(R"({"width": 640, "height": 480, "K": [615.5, 0, 321.75, 0, 616.25, 238.5, 0, 0, 1]})"), 640);
+  expectCamera(read(R"({"k": [[615.5, 0, 321.75], [0, 616.25, 238.5], [0, 0, 1]]})"), 0);
+  expectCamera(read(R"({"camera_matrix": {"type_id": "opencv-matrix", "rows": 3, "cols": 3, "dt": "d",
+                         "data": [615.5, 0, 321.75, 0, 616.25, 238.5, 0, 0, 1]}})"),
+               0);
+  // RealSense's names for the principal point.
+  expectCamera(read(R"({"fx": 615.5, "fy": 616.25, "ppx": 321.75, "ppy": 238.5, "width": 640})"), 640);
+  EXPECT_NE(errorOf([&] { read(R"({"K": [615.5, 0, 321.75, 1, 616.25, 238.5, 5, 0, 1]})"); }).find("no camera matrix"),
+            std::string::npos);
+  EXPECT_NE(errorOf([&] { read(R"({"K": [615.5, 0, 321.75, 0, 616.25]})"); }).find("K must hold 9 numbers"), std::string::npos);
+  EXPECT_NE(errorOf([&] { read(R"({"K": [615.5, 0, "x", 0, 616.25, 238.5, 0, 0, 1]})"); }).find("9 numbers"), std::string::npos);
+}
+
 TEST(Units, ParseAndScale) {
   EXPECT_EQ(unitScale(parseUnits("m")), 1000.0);
   EXPECT_EQ(unitScale(parseUnits("mm")), 1.0);

@@ -76,7 +76,9 @@ struct Intrinsics {
   int width = 0, height = 0;  ///< 0 when the file does not say
 };
 
-/// BOP `camera.json` ({fx, fy, cx, cy, depth_scale, width, height}) or `scene_camera.json`
+/// BOP `camera.json` ({fx, fy, cx, cy, depth_scale, width, height}; cx, cy also as RealSense's ppx,
+/// ppy; or the 3 x 3 camera matrix as ROS's K or k, OpenCV's camera_matrix, Open3D's column-major
+/// intrinsic_matrix, 9 numbers, 3 rows or {"data": [9]}) or `scene_camera.json`
 /// ({"<image id>": {"cam_K": [9 values], "depth_scale": s}}; `image_id` picks the entry, the
 /// first one when empty).
 Intrinsics readIntrinsics(const std::string& path, const std::string& image_id = "");

@@ -103,6 +103,8 @@ def depth_files():
     write("depth", "tiff_points_2x2", b"\x03" + tiff(2, 2, 3, "d", 3, points))
     write("depth", "camera", b"\x00" + b'{"fx": 500, "fy": 500, "cx": 2, "cy": 1.5, "depth_scale": 0.1,'
           b' "width": 4, "height": 3}')
+    write("depth", "camera_open3d", b"\x00" + b'{"width": 4, "height": 3, "intrinsic_matrix": [500, 0, 0, 0, 500, 0, 2, 1.5, 1]}')
+    write("depth", "camera_opencv", b"\x00" + b'{"camera_matrix": {"rows": 3, "cols": 3, "data": [[500, 0, 2], [0, 500, 1.5], [0, 0, 1]]}}')
     write("depth", "scene_camera", b"\x00" + b'{"1": {"cam_K": [500, 0, 2, 0, 500, 1.5, 0, 0, 1],'
           b' "depth_scale": 1.0}, "2": {"cam_K": [1, 0, 0, 0, 1, 0, 0, 0, 1], "depth_scale": 0.5}}')
 
