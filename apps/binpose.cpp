@@ -33,9 +33,12 @@ double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>
 
 /// A part this small (mm) is no bin-picking part: a model file spanning less is in metres.
 constexpr float kSmallestPart = 2.0f;
+/// A model file read in millimetres that spans less than this may be in inches or centimetres,
+/// which no extent tells apart from a small part: a note says so.
+constexpr float kSmallPart = 10.0f;
 
 /// The model file in millimetres. `units` "auto": millimetres, unless the file spans less than
-/// kSmallestPart, then metres, with a note.
+/// kSmallestPart, then metres, with a note; under kSmallPart a note names --units in and cm.
 binpose::ModelFile readModelInUnits(const std::string& path, const std::string& units) {
   if (units != "auto") return binpose::readModelOrBuiltin(path, binpose::unitScale(binpose::parseUnits(units)));
   binpose::ModelFile file = binpose::readModelOrBuiltin(path, 1.0);
@@ -44,6 +47,10 @@ binpose::ModelFile readModelInUnits(const std::string& path, const std::string& 
     fmt::print(stderr, "note: the model spans {:.3g} units, less than {} mm: reading it in metres (--units mm keeps millimetres)\n",
                extent, kSmallestPart);
     file = binpose::readModelOrBuiltin(path, binpose::unitScale(binpose::Units::Metres));
+  } else if (extent > 0 && extent < kSmallPart) {
+    fmt::print(stderr,
+               "note: the model spans {:.3g} mm; if its file is in inches or centimetres, give --units in or --units cm\n",
+               extent);
   }
   return file;
 }
@@ -66,8 +73,11 @@ void addTrain(CLI::App& app, TrainOptions& o) {
   train->add_option("--d-dist", o.d_dist, "Distance step d_dist, mm (default: 1 mm x diameter/60 mm)");
   train->add_option("--d-angle", o.d_angle_deg, "Angle step d_angle, degrees (default 8)");
   train->add_option("--overlap", o.overlap, "Bin overlap p_d, fraction of a step in [0, 0.5) (default 0.15)");
-  train->add_option("--units", o.units, "Length unit of the model file: mm, m, or auto (mm, unless the file spans less than 2 mm: then m, with a note)")
-      ->check(CLI::IsMember({"auto", "mm", "m"}))
+  train
+      ->add_option(
+          "--units", o.units,
+          "Length unit of the model file: mm, cm, m, in, or auto (mm, unless the file spans less than 2 mm: then m, with a note)")
+      ->check(CLI::IsMember({"auto", "mm", "cm", "m", "in"}))
       ->capture_default_str();
   train->add_option("--seed", o.seed, "Sampling seed")->capture_default_str();
 }
@@ -134,13 +144,15 @@ void addScanOptions(CLI::App* d, DetectOptions& o) {
   d->add_option("--preset", o.preset, "Parameter preset: default, or thesis (chapter 5 as written); fast: an alias of default")
       ->check(CLI::IsMember({"default", "fast", "thesis"}))->capture_default_str();
   d->add_option("--params", o.params_file, "JSON file of parameters (absolute units, mm), applied after the preset");
-  d->add_option("--units", o.units,
-                "Length unit of the scene file (of a depth image: its values times depth_scale): mm, m, or auto (mm, unless the "
-                "scene spans less than half the model's diameter: then m, with a note)")
-      ->check(CLI::IsMember({"auto", "mm", "m"}))
+  d->add_option(
+       "--units", o.units,
+       "Length unit of the scene file (of a depth image: its values times depth_scale): mm, cm, m, in, or auto (mm, unless the "
+       "scene spans less than half the model's diameter: then m, with a note)")
+      ->check(CLI::IsMember({"auto", "mm", "cm", "m", "in"}))
       ->capture_default_str();
-  d->add_option("--model-units", o.model_units, "Length unit of a model file trained on the fly: mm, m, or auto (as train's --units)")
-      ->check(CLI::IsMember({"auto", "mm", "m"}))
+  d->add_option("--model-units", o.model_units,
+                "Length unit of a model file trained on the fly: mm, cm, m, in, or auto (as train's --units)")
+      ->check(CLI::IsMember({"auto", "mm", "cm", "m", "in"}))
       ->capture_default_str();
   d->add_option("--model-points", o.model_points, "Model points when training on the fly")->capture_default_str();
   d->add_option("--r", o.r, "Sampling radius r, mm (default 25 mm x diameter/60 mm)");
@@ -471,7 +483,9 @@ void addSimulate(CLI::App& app, SimulateOptions& o) {
   s->add_option("--instances", o.params.instances, "Copies dropped into the bin")->capture_default_str();
   s->add_option("--seed", o.params.seed, "Seed of the drop and the sensor noise")->capture_default_str();
   s->add_option("--out", o.out, "Folder for depth.png, camera.json, scene.ply, ground_truth.json and BOP files")->required();
-  s->add_option("--units", o.units, "Length unit of the model file: mm or m")->check(CLI::IsMember({"mm", "m"}))->capture_default_str();
+  s->add_option("--units", o.units, "Length unit of the model file: mm, cm, m or in")
+      ->check(CLI::IsMember({"mm", "cm", "m", "in"}))
+      ->capture_default_str();
   s->add_option("--model-info", o.model_info, "BOP models_info.json giving the part's symmetries");
   s->add_option("--obj-id", o.obj_id, "Entry of --model-info")->capture_default_str();
   s->add_option("--width", o.params.sensor.width, "Image width, px")->capture_default_str();
@@ -554,7 +568,9 @@ void addEval(CLI::App& app, EvalOptions& o) {
   e->add_option("--scene-id", o.scene_id, "The CSV rows' scene (default: the CSV's only one)");
   e->add_option("--im-id", o.im_id, "The CSV rows' image")->capture_default_str();
   e->add_option("--model", o.model, "The part's mesh (or builtin:NAME), as simulated")->required();
-  e->add_option("--units", o.units, "Length unit of the model file")->check(CLI::IsMember({"mm", "m"}))->capture_default_str();
+  e->add_option("--units", o.units, "Length unit of the model file: mm, cm, m or in")
+      ->check(CLI::IsMember({"mm", "cm", "m", "in"}))
+      ->capture_default_str();
   e->add_option("--models-info", o.models_info, "BOP models_info.json with the symmetries (default: the truth folder's)");
   e->add_option("--obj-id", o.obj_id, "Entry of models_info.json")->capture_default_str();
   e->add_option("--threshold", o.threshold, "A detection is correct when ADD-S < threshold x diameter")->capture_default_str();

@@ -18,12 +18,26 @@ bool normalizeSafe(Vec3& n) {
   return true;
 }
 
-double unitScale(Units units) { return units == Units::Metres ? 1000.0 : 1.0; }
+double unitScale(Units units) {
+  switch (units) {
+    case Units::Centimetres:
+      return 10.0;
+    case Units::Metres:
+      return 1000.0;
+    case Units::Inches:
+      return 25.4;
+    case Units::Millimetres:
+      break;
+  }
+  return 1.0;
+}
 
 Units parseUnits(const std::string& text) {
   if (text == "mm") return Units::Millimetres;
+  if (text == "cm") return Units::Centimetres;
   if (text == "m") return Units::Metres;
-  throw Error(fmt::format("units: expected 'mm' or 'm', got '{}'", text));
+  if (text == "in") return Units::Inches;
+  throw Error(fmt::format("units: expected 'mm', 'cm', 'm' or 'in', got '{}'", text));
 }
 
 bool isXyzPath(const std::string& path) {

@@ -27,8 +27,6 @@ PointCloud readScan(const ScanSource& source, double unit_scale) {
 
 LoadedScan loadScan(const ScanSource& source, float part_diameter) {
   LoadedScan out;
-  if (source.units != "auto" && source.units != "mm" && source.units != "m")
-    throw Error(fmt::format("units: expected 'mm', 'm' or 'auto', got '{}'", source.units));
   if (source.units != "auto") {
     out.cloud = readScan(source, unitScale(parseUnits(source.units)));
     return out;

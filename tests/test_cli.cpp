@@ -73,6 +73,25 @@ TEST(TrainCli, ModelInMetresIsReadInMetresUnlessMillimetresAreGiven) {
   EXPECT_LT(ModelDatabase::load(by_mm).model().diameter, 1.0f);
 }
 
+// A model file in inches (a CAD export) spans a few units: read in millimetres it is a part of a
+// few millimetres, which its size cannot tell from one in inches, so a note names --units in;
+// with it the model is the millimetre file's.
+TEST(TrainCli, ModelInInchesGetsANoteAndItsSizeWithUnitsIn) {
+  REQUIRE_DATA("ipd_parts/models/obj_000001.ply");
+  const Mesh mesh = readPlyMesh(dataPath("ipd_parts/models/obj_000001.ply"));
+  Points inches = mesh.vertices;
+  for (Vec3& v : inches) v /= 25.4f;
+  const std::string model = test::tempPath("obj1_inches.ply");
+  writePly(model, inches, mesh.normals, mesh.faces);
+  const std::string by_auto = test::tempPath("obj1_auto.bpdb"), by_in = test::tempPath("obj1_in.bpdb");
+  const CliRun run = runCli(fmt::format("train --model {} --out {} --points 500", model, by_auto));
+  ASSERT_EQ(run.code, 0) << run.out;
+  EXPECT_NE(run.err.find("--units in"), std::string::npos) << run.err;
+  ASSERT_EQ(runCli(fmt::format("train --model {} --out {} --points 500 --units in", model, by_in)).code, 0);
+  EXPECT_NEAR(ModelDatabase::load(by_in).model().diameter, 25.4f * ModelDatabase::load(by_auto).model().diameter, 0.01f);
+  EXPECT_GT(ModelDatabase::load(by_in).model().diameter, 100.0f);
+}
+
 TEST(TrainCli, BadInputExitsTwoWithOneLine) {
   const std::string junk = test::tempPath("junk.ply");
   test::writeAll(junk, "ply\nformat ascii 1.0\nelement vertex 100\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n");

@@ -618,7 +618,9 @@ TEST(DepthReader, CameraFilesOfOtherTools) {
 TEST(Units, ParseAndScale) {
   EXPECT_EQ(unitScale(parseUnits("m")), 1000.0);
   EXPECT_EQ(unitScale(parseUnits("mm")), 1.0);
-  EXPECT_THROW(parseUnits("cm"), Error);
+  EXPECT_EQ(unitScale(parseUnits("cm")), 10.0);
+  EXPECT_EQ(unitScale(parseUnits("in")), 25.4);
+  EXPECT_THROW(parseUnits("ft"), Error);
 }
 
 TEST(ScanFile, DepthImageByItsCameraFileItsUnitGuessedFromThePart) {
@@ -637,5 +639,5 @@ TEST(ScanFile, DepthImageByItsCameraFileItsUnitGuessedFromThePart) {
   for (std::size_t i = 0; i < mm.cloud.size(); i += 997) ASSERT_NEAR(guessed.cloud.points[i].z(), mm.cloud.points[i].z(), 1e-3f);
   EXPECT_NEAR(loadScan({png, in_metres, "", "mm"}, 136.0f).cloud.points[0].z(), mm.cloud.points[0].z() / 1000.0f, 1e-6f);
   EXPECT_NE(errorOf([&] { loadScan({png, "", "", "auto"}, 136.0f); }).find("needs its camera's intrinsics"), std::string::npos);
-  EXPECT_NE(errorOf([&] { loadScan({png, camera, "", "cm"}, 136.0f); }).find("'mm', 'm' or 'auto'"), std::string::npos);
+  EXPECT_NE(errorOf([&] { loadScan({png, camera, "", "km"}, 136.0f); }).find("'mm', 'cm', 'm' or 'in'"), std::string::npos);
 }

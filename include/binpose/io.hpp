@@ -9,10 +9,10 @@
 namespace binpose {
 
 /// Length unit of a file on disk.
-enum class Units { Millimetres, Metres };
+enum class Units { Millimetres, Centimetres, Metres, Inches };
 /// Factor from `units` to millimetres.
 double unitScale(Units units);
-/// Parses "mm" or "m" (throws on anything else).
+/// Parses "mm", "cm", "m" or "in" (throws on anything else).
 Units parseUnits(const std::string& text);
 /// A scan spanning less than this share of a part's diameter cannot hold it: read in millimetres,
 /// it is one in metres.

@@ -16,7 +16,8 @@ struct ScanSource {
   std::string intrinsics;
   /// The scene_camera.json entry ("": the first).
   std::string image_id;
-  /// Length unit of the file (of a depth image: of its values times depth_scale): "mm", "m", or
+  /// Length unit of the file (of a depth image: of its values times depth_scale): "mm", "cm", "m",
+  /// "in", or
   /// "auto": millimetres, unless the scan then spans less than kLeastScanShareOfPart of the part's
   /// diameter, which it could not hold: metres.
   std::string units = "auto";
