@@ -443,7 +443,7 @@ PYBIND11_MODULE(binpose, m) {
            py::arg("units") = "auto", py::arg("viewpoint") = py::none(),
            "A scan file read as `binpose detect --scene` reads it: PLY, PCD, ASCII points, a TIFF point map, a mesh's "
            "vertices, or a depth image (16-bit PNG, TIFF) with intrinsics (a BOP camera.json or scene_camera.json, "
-           "image_id its entry). units: 'mm', 'm', or 'auto' (mm, unless the scan spans less than half the model: m, "
+           "image_id its entry). units: 'mm', 'cm', 'm', 'in', or 'auto' (mm, unless the scan spans less than half the model: m, "
            "with a warning). The file's viewpoint is used where it gives one.")
       .def("check", &PyDetector::check, py::arg("points"), py::arg("poses"), py::arg("viewpoint") = py::none(),
            "Why a part known to lie somewhere is or is not found: each of poses (N x 4 x 4, model -> scan, mm) refined "

@@ -57,6 +57,31 @@ Eigen::Matrix3d cameraMatrix(const std::string& path, const char* key, const jso
   fail(path, fmt::format("{} is no camera matrix [fx 0 cx; 0 fy cy; 0 0 1]", key));
 }
 
+/// The organized cloud of a width x height depth image in its camera's frame (mm):
+/// `depth_mm(pixel)` for each row-major pixel; one at 0, below it, NaN, or a point farther than
+/// detail::kFarthestMm holds no measurement and is dropped.
+template <typename DepthMm>
+PointCloud depthCloud(int width, int height, const Intrinsics& k, DepthMm&& depth_mm) {
+  PointCloud cloud;
+  cloud.width = width;
+  cloud.height = height;
+  cloud.fx = float(k.fx);
+  cloud.fy = float(k.fy);
+  cloud.cx = float(k.cx);
+  cloud.cy = float(k.cy);
+  cloud.has_viewpoint = true;  // the camera frame
+  for (int v = 0; v < height; ++v)
+    for (int u = 0; u < width; ++u) {
+      const double z = depth_mm(static_cast<std::size_t>(v) * width + u);
+      if (!(z > 0 && z < detail::kFarthestMm)) continue;  // no measurement (NaN fails too)
+      const double x = (u - k.cx) * z / k.fx, y = (v - k.cy) * z / k.fy;
+      if (!(std::abs(x) < detail::kFarthestMm && std::abs(y) < detail::kFarthestMm)) continue;
+      cloud.points.emplace_back(float(x), float(y), float(z));
+      cloud.pixel.push_back(v * width + u);
+    }
+  return cloud;
+}
+
 /// The most pixels along an image side a camera file may claim.
 constexpr double kMostImageSide = 65535;
 
@@ -164,11 +189,11 @@ Intrinsics readIntrinsics(const std::string& path, const std::string& image_id) 
 }
 
 PointCloud depthToCloud(const std::vector<std::uint16_t>& depth, int width, int height, const Intrinsics& k) {
-  return detail::depthCloud(width, height, k, [&](std::size_t pixel) { return depth[pixel] * k.depth_scale; });
+  return depthCloud(width, height, k, [&](std::size_t pixel) { return depth[pixel] * k.depth_scale; });
 }
 
 PointCloud depthToCloud(const std::vector<float>& depth, int width, int height, const Intrinsics& k) {
-  return detail::depthCloud(width, height, k, [&](std::size_t pixel) { return depth[pixel] * k.depth_scale; });
+  return depthCloud(width, height, k, [&](std::size_t pixel) { return depth[pixel] * k.depth_scale; });
 }
 
 PointCloud pointMapToCloud(const Points& xyz, int width, int height) {

@@ -4,7 +4,6 @@
 #include <binpose/types.hpp>
 
 #include <bit>
-#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <fmt/format.h>
@@ -36,31 +35,6 @@ void checkIntrinsics(const std::string& path, const Intrinsics& k);
 /// A coordinate beyond this (mm, 100 km) is no measurement: a sensor's marker for a missing depth
 /// (the largest float), or a value no float holds.
 constexpr double kFarthestMm = 1e8;
-
-/// The organized cloud of a width x height depth image in its camera's frame (mm):
-/// `depth_mm(pixel)` for each row-major pixel; one at 0, below it, NaN, or a point farther than
-/// kFarthestMm holds no measurement and is dropped.
-template <typename DepthMm>
-PointCloud depthCloud(int width, int height, const Intrinsics& k, DepthMm&& depth_mm) {
-  PointCloud cloud;
-  cloud.width = width;
-  cloud.height = height;
-  cloud.fx = float(k.fx);
-  cloud.fy = float(k.fy);
-  cloud.cx = float(k.cx);
-  cloud.cy = float(k.cy);
-  cloud.has_viewpoint = true;  // the camera frame
-  for (int v = 0; v < height; ++v)
-    for (int u = 0; u < width; ++u) {
-      const double z = depth_mm(static_cast<std::size_t>(v) * width + u);
-      if (!(z > 0 && z < kFarthestMm)) continue;  // no measurement (NaN fails too)
-      const double x = (u - k.cx) * z / k.fx, y = (v - k.cy) * z / k.fy;
-      if (!(std::abs(x) < kFarthestMm && std::abs(y) < kFarthestMm)) continue;
-      cloud.points.emplace_back(float(x), float(y), float(z));
-      cloud.pixel.push_back(v * width + u);
-    }
-  return cloud;
-}
 
 /// Lower-cased file extension without the dot ("" when none).
 std::string extensionOf(const std::string& path);

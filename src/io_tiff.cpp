@@ -9,6 +9,7 @@
 #include <cstdarg>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <tiffio.h>
 
@@ -130,12 +131,10 @@ PointCloud readDepthTiff(const std::string& path, const Intrinsics& k) {
   std::vector<double> row;
   for (int v = 0; v < map.height; ++v) {
     map.readRow(v, row);
-    for (int u = 0; u < map.width; ++u) {
-      const double z = row[u] * k.depth_scale;  // NaN, infinite or a missing depth's marker: none
-      depth[std::size_t(v) * map.width + u] = std::abs(z) < detail::kFarthestMm ? float(z) : 0.0f;
-    }
+    for (int u = 0; u < map.width; ++u)  // a value no float holds (a 64-bit marker) is none
+      depth[std::size_t(v) * map.width + u] = std::abs(row[u]) <= std::numeric_limits<float>::max() ? float(row[u]) : NAN;
   }
-  return detail::depthCloud(map.width, map.height, k, [&](std::size_t pixel) { return depth[pixel]; });
+  return depthToCloud(depth, map.width, map.height, k);  // NaN, 0 or below, beyond kFarthestMm: none
 }
 
 PointCloud readTiffPointMap(const std::string& path, double scale) {
