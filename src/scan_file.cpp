@@ -3,12 +3,15 @@
 #include <binpose/io.hpp>
 #include <binpose/scan_file.hpp>
 
+#include "io_detail.hpp"
+
 #include <fmt/format.h>
 
 namespace binpose {
 namespace {
 
-bool isPng(const std::string& path) { return path.size() > 4 && path.compare(path.size() - 4, 4, ".png") == 0; }
+/// A PNG by its extension in any case (scan.PNG), as TIFFs and clouds are told.
+bool isPng(const std::string& path) { return detail::extensionOf(path) == "png"; }
 
 /// The file times `unit_scale`: a depth image (a PNG, or a TIFF given intrinsics) by its camera
 /// file (its values times depth_scale, times `unit_scale`), any other file as a cloud.

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <filesystem>
 
 using namespace binpose;
 using test::dataPath;
@@ -639,5 +640,10 @@ TEST(ScanFile, DepthImageByItsCameraFileItsUnitGuessedFromThePart) {
   for (std::size_t i = 0; i < mm.cloud.size(); i += 997) ASSERT_NEAR(guessed.cloud.points[i].z(), mm.cloud.points[i].z(), 1e-3f);
   EXPECT_NEAR(loadScan({png, in_metres, "", "mm"}, 136.0f).cloud.points[0].z(), mm.cloud.points[0].z() / 1000.0f, 1e-6f);
   EXPECT_NE(errorOf([&] { loadScan({png, "", "", "auto"}, 136.0f); }).find("needs its camera's intrinsics"), std::string::npos);
+  // The extension in capitals, as some cameras' software writes it, is a depth image too.
+  const std::string upper = test::tempPath("depth_upper.PNG");
+  std::filesystem::copy_file(png, upper, std::filesystem::copy_options::overwrite_existing);
+  EXPECT_EQ(loadScan({upper, camera, "", "auto"}, 136.0f).cloud.size(), mm.cloud.size());
+  EXPECT_NE(errorOf([&] { loadScan({upper, "", "", "auto"}, 136.0f); }).find("needs its camera's intrinsics"), std::string::npos);
   EXPECT_NE(errorOf([&] { loadScan({png, camera, "", "km"}, 136.0f); }).find("'mm', 'cm', 'm' or 'in'"), std::string::npos);
 }
